@@ -1,0 +1,19 @@
+"""pvgraph: acausal component-graph modelling of hydraulic circuits.
+
+Build a circuit from components, compile it to a DAE system, simulate it with an IDA-style
+implicit solver, and address results by dotted name.
+"""
+
+from .circuit import Circuit
+from .component import (Component, Hydraulic, Mechanical, Params, SignalIn, SignalOut, Variable,
+                        der)
+from .errors import (CircuitError, ConnectionError_, InitializationError, ParameterError,
+                     PvgraphError, SolverError, StructureError)
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Circuit", "Component", "Hydraulic", "Mechanical", "Params", "SignalIn", "SignalOut",
+    "Variable", "der", "PvgraphError", "CircuitError", "ConnectionError_", "ParameterError",
+    "StructureError", "InitializationError", "SolverError",
+]

@@ -1,0 +1,158 @@
+"""Emit flat Python functions from expression graphs.
+
+The compiled residual and Jacobian are straight-line Python over floats: one function, no calls
+back into the component objects, shared subexpressions computed once (common subexpressions are
+found structurally across every equation of the circuit). ``System.source()`` prints the text.
+
+Two flavours: ``"scalar"`` for the solver (``math`` functions on Python floats, the fastest way
+to evaluate small expressions in CPython) and ``"array"`` for post-processing a whole solution at
+once (``numpy`` functions on arrays of time points).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .expr import Expr, postorder
+
+__all__ = ["generate", "compile_function"]
+
+# A node that would nest deeper than this is stored in a temporary, to keep generated lines short
+# and well inside the parser's nesting limit.
+MAX_INLINE_DEPTH = 12
+
+_SCALAR_FUNCS = {"sqrt": "_sqrt", "exp": "_exp", "log": "_log", "tanh": "_tanh", "sin": "_sin",
+                 "cos": "_cos", "atan": "_atan", "abs": "abs"}
+_ARRAY_FUNCS = {"sqrt": "_np.sqrt", "exp": "_np.exp", "log": "_np.log", "tanh": "_np.tanh",
+                "sin": "_np.sin", "cos": "_np.cos", "atan": "_np.arctan", "abs": "_np.abs"}
+_INFIX = {"add": "+", "sub": "-", "mul": "*", "div": "/", "pow": "**",
+          "lt": "<", "le": "<=", "gt": ">", "ge": ">="}
+
+
+def generate(name: str, roots: list[Expr], *, flavour: str = "scalar",
+             extra_args: tuple[str, ...] = (), comments: list[str] | None = None):
+    """Source text of ``def name(t, y, yp, d, *extra_args)`` returning the list of ``roots``.
+
+    Returns ``(source, tables)``: the text and the :class:`~pvgraph.expr.Table` objects it
+    references (to be bound as ``_tab0``, ``_tab1``, ... in its namespace).
+    """
+    funcs = _SCALAR_FUNCS if flavour == "scalar" else _ARRAY_FUNCS
+    order = postorder(roots)
+
+    # structural keys: equal subtrees share one key, so they are computed once
+    key_of: dict[int, int] = {}
+    table: dict[tuple, int] = {}
+    rep: list[Expr] = []
+    for node in order:
+        if node.op == "const":
+            sig = ("const", node.value)
+        elif node.op in ("y", "yp", "mode", "time", "sym", "der", "cj"):
+            sig = (node.op, node.value)
+        elif node.op in ("interp", "interp_d"):
+            sig = (node.op, id(node.value), key_of[id(node.args[0])])
+        else:
+            sig = (node.op,) + tuple(key_of[id(a)] for a in node.args)
+        k = table.get(sig)
+        if k is None:
+            k = table[sig] = len(rep)
+            rep.append(node)
+        key_of[id(node)] = k
+
+    uses = [0] * len(rep)
+    for k, node in enumerate(rep):
+        for a in node.args:
+            uses[key_of[id(a)]] += 1
+    for r in roots:
+        uses[key_of[id(r)]] += 1
+
+    tables: list = []
+    table_names: dict[int, str] = {}
+    text: list[str] = [""] * len(rep)
+    depth = [0] * len(rep)
+    body: list[str] = []
+    ntemp = 0
+    for k, node in enumerate(rep):
+        op = node.op
+        args = [key_of[id(a)] for a in node.args]
+        if op == "const":
+            text[k] = _float(node.value)
+            continue
+        if op in ("y", "yp", "mode"):
+            text[k] = f"{'d' if op == 'mode' else op}[{node.value}]"
+            continue
+        if op == "time":
+            text[k] = "t"
+            continue
+        if op == "cj":
+            text[k] = "c"
+            continue
+        if op in ("sym", "der"):
+            raise ValueError(f"unresolved symbol {node.value!r} reached code generation")
+        a = [text[i] for i in args]
+        if op in _INFIX:
+            s = f"({a[0]} {_INFIX[op]} {a[1]})"
+        elif op == "neg":
+            s = f"(-{a[0]})"
+        elif op == "where":
+            if flavour == "scalar":
+                s = f"({a[1]} if {a[0]} else {a[2]})"
+            else:
+                s = f"_np.where({a[0]}, {a[1]}, {a[2]})"
+        elif op in ("interp", "interp_d"):
+            tab = node.value
+            if id(tab) not in table_names:
+                table_names[id(tab)] = f"_tab{len(tables)}"
+                tables.append(tab)
+            method = {("interp", "scalar"): "value", ("interp_d", "scalar"): "slope",
+                      ("interp", "array"): "values", ("interp_d", "array"): "slopes"}
+            s = f"{table_names[id(tab)]}.{method[(op, flavour)]}({a[0]})"
+        else:
+            s = f"{funcs[op]}({a[0]})"
+        depth[k] = 1 + max((depth[i] for i in args), default=0)
+        if uses[k] > 1 or depth[k] > MAX_INLINE_DEPTH:
+            tmp = f"_{ntemp}"
+            ntemp += 1
+            body.append(f"    {tmp} = {s}")
+            text[k] = tmp
+            depth[k] = 0
+        else:
+            text[k] = s
+
+    out = []
+    for i, r in enumerate(roots):
+        line = f"        {text[key_of[id(r)]]},"
+        if comments is not None:
+            line += f"  # {comments[i]}"
+        out.append(line)
+    params = ", ".join(("t", "y", "yp", "d") + tuple(extra_args))
+    src = [f"def {name}({params}):"]
+    src.extend(body)
+    src.append("    return [")
+    src.extend(out)
+    src.append("    ]")
+    return "\n".join(src) + "\n", tables
+
+
+def _float(v: float) -> str:
+    if math.isnan(v):
+        return "_nan"
+    if math.isinf(v):
+        return "_inf" if v > 0 else "(-_inf)"
+    return repr(float(v))
+
+
+def compile_function(name: str, source: str, tables: list):
+    """Execute generated ``source`` and return the function ``name`` defined in it."""
+    namespace = {
+        "_sqrt": math.sqrt, "_exp": math.exp, "_log": math.log, "_tanh": math.tanh,
+        "_sin": math.sin, "_cos": math.cos, "_atan": math.atan, "_np": np,
+        "_nan": math.nan, "_inf": math.inf,
+    }
+    for i, tab in enumerate(tables):
+        namespace[f"_tab{i}"] = tab
+    code = compile(source, f"<pvgraph generated {name}>", "exec")
+    exec(code, namespace)  # noqa: S102 - the source is generated by pvgraph from expressions
+    return namespace[name]
+

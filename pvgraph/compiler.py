@@ -1,0 +1,484 @@
+"""The graph compiler: circuit -> DAE system F(t, y, y') = 0.
+
+Pipeline
+--------
+1. Flatten the hierarchy; every variable gets its dotted name (``pvg.pvb.main_spool.flange.x``).
+2. Build the port graph (networkx) and take its connected components as connection sets. Per
+   set: across variables equal, through variables sum to zero; signals have exactly one driver.
+3. Trace every component's equations once into expression graphs (exact incidence).
+4. Alias elimination: equations of the form ``a*u + b*v + c = 0`` or ``a*u + c = 0`` in plain
+   variables remove one unknown each (connection equalities, two-port flow balances, fixed
+   pressures). Every eliminated name stays addressable in results.
+5. Checks: equations equal unknowns; a maximum bipartite matching proves the pencil
+   dF/dy + c dF/dy' structurally regular; a second matching on (derivatives of differential
+   variables, algebraic variables) proves index <= 1. Failures name equations and variables.
+6. Emit the residual, the Jacobian values on a fixed sparse pattern, event functions and derived
+   outputs as generated Python (:mod:`pvgraph.codegen`).
+
+Parallel volumes on one node need no special treatment: the node's pressure is one unknown after
+alias elimination, each volume contributes its own flow unknown, and the DAE stays index one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import networkx as nx
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import maximum_bipartite_matching
+
+from . import expr as E
+from .circuit import Circuit
+from .component import SIGNAL, Component
+from .errors import CircuitError, ConnectionError_, StructureError
+
+__all__ = ["compile_circuit", "VarInfo"]
+
+MAX_AFFINE_NODES = 40  # larger expressions are not tested for the affine alias form
+NAMES_IN_MESSAGES = 12
+
+
+@dataclass
+class VarInfo:
+    """Metadata of one variable (unknown or eliminated)."""
+
+    name: str
+    unit: str
+    start: float
+    nominal: float
+    description: str
+    owner: str
+    start_priority: int = 0  # 0 class default, 1 from parameters, 2 set by the user
+
+
+@dataclass
+class _Equation:
+    expr: E.Expr
+    origin: str      # component path or "node ..." for connection equations
+    label: str       # human-readable description
+
+
+def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True):
+    """Compile ``circuit`` to a :class:`~pvgraph.system.System`.
+
+    Raises
+    ------
+    CircuitError, ConnectionError_
+        Unconnected ports, incompatible domains, undriven or multiply driven signals.
+    StructureError
+        Unbalanced, structurally singular or higher-index systems, with names.
+    """
+    if not isinstance(circuit, Circuit):
+        raise CircuitError(f"compile() takes a Circuit, got {type(circuit).__name__}")
+    leaves = _flatten(circuit)
+    if not leaves:
+        raise CircuitError(f"circuit {circuit.name!r} has no components")
+    infos: dict[str, VarInfo] = {}
+    equations: list[_Equation] = []
+    observed: dict[str, tuple] = {}
+    events = []
+    mode_names: list[str] = []
+    mode_start: list[float] = []
+
+    for path, comp in leaves:
+        _declare_variables(path, comp, infos)
+        residuals, v = comp.trace(path)
+        for k, r in enumerate(residuals):
+            equations.append(_Equation(r, path, f"{path} equation {k + 1} "
+                                                f"({type(comp).__name__})"))
+        for name, obs in v.observed.items():
+            observed[f"{path}.{name}"] = (obs.expr, obs.unit, obs.description)
+        for ev in v.events:
+            events.append((path, ev))
+        for mname, mstart in type(comp).modes.items():
+            mode_names.append(f"{path}.#{mname}")
+            mode_start.append(float(mstart))
+
+    equations.extend(_connection_equations(circuit, leaves, infos))
+    _check_symbols(equations, infos, set(mode_names))
+
+    subs: dict[str, tuple[float, str | None, float]] = {}
+    if eliminate_aliases:
+        equations = _eliminate_aliases(equations, infos, subs)
+
+    from .system import build_system
+    return build_system(circuit.name, equations, infos, subs, observed, events, mode_names,
+                        mode_start)
+
+
+# 1. flatten ---------------------------------------------------------------------------------
+
+def _flatten(circuit: Circuit) -> list[tuple[str, Component]]:
+    out = []
+
+    def walk(node: Circuit, prefix: str):
+        for name, child in node._components.items():
+            path = f"{prefix}{name}"
+            if isinstance(child, Circuit):
+                walk(child, path + ".")
+            else:
+                out.append((path, child))
+
+    walk(circuit, "")
+    return out
+
+
+def _rel_path(root: Circuit, owner) -> str:
+    parts = []
+    node = owner
+    while node is not None and node is not root:
+        parts.append(node._name)
+        node = node._parent
+    return ".".join(reversed(parts))
+
+
+# 2. connection sets -------------------------------------------------------------------------
+
+def _declare_variables(path, comp, infos):
+    starts = comp.start_values()
+    explicit_user = set(comp._start)
+    from_params = set(comp.starts(comp.params))
+    for pname, port in type(comp).ports.items():
+        d = port.domain
+        if d is SIGNAL:
+            key = pname
+            infos[f"{path}.{pname}"] = VarInfo(
+                f"{path}.{pname}", port.across_unit, float(starts.get(key, 0.0)),
+                port.across_nominal, port.description or f"signal {pname}", path,
+                _priority(key, explicit_user, from_params))
+            continue
+        key = f"{pname}.{d.across}"
+        infos[f"{path}.{key}"] = VarInfo(
+            f"{path}.{key}", d.across_unit, float(starts.get(key, 0.0)), d.across_nominal,
+            f"{d.across} at port {pname}", path, _priority(key, explicit_user, from_params))
+        infos[f"{path}.{pname}.{d.through}"] = VarInfo(
+            f"{path}.{pname}.{d.through}", d.through_unit, 0.0, d.through_nominal,
+            f"{d.through} into port {pname}", path, 0)
+    for vname, var in type(comp).variables.items():
+        infos[f"{path}.{vname}"] = VarInfo(
+            f"{path}.{vname}", var.unit, float(starts[vname]), var.nominal, var.description, path,
+            _priority(vname, explicit_user, from_params))
+
+
+def _priority(key, user, params):
+    return 2 if key in user else 1 if key in params else 0
+
+
+def _connection_equations(root, leaves, infos) -> list[_Equation]:
+    graph = nx.Graph()
+    leaf_ids = {id(c) for _, c in leaves}
+    for path, comp in leaves:
+        for pname in type(comp).ports:
+            graph.add_node((id(comp), pname), label=f"{path}.{pname}", comp=comp, port=pname,
+                           leaf=True)
+
+    def node_of(ref):
+        key = (id(ref.owner), ref.name)
+        if key not in graph:
+            graph.add_node(key, label=(_rel_path(root, ref.owner) + "." + ref.name).lstrip("."),
+                           comp=ref.owner, port=ref.name, leaf=id(ref.owner) in leaf_ids)
+        return key
+
+    def walk(node: Circuit):
+        for refs in node._connections:
+            keys = [node_of(r) for r in refs]
+            for a, b in zip(keys, keys[1:]):
+                graph.add_edge(a, b)
+        for name, (ref, _) in node._exposed.items():
+            graph.add_edge(node_of(_PortKey(node, name)), node_of(ref))
+        for child in node._components.values():
+            if isinstance(child, Circuit):
+                walk(child)
+
+    walk(root)
+    equations = []
+    for group in nx.connected_components(graph):
+        ports = [graph.nodes[k] for k in group if graph.nodes[k]["leaf"]]
+        ports.sort(key=lambda a: a["label"])
+        labels = [a["label"] for a in ports]
+        exposed = sorted(graph.nodes[k]["label"] for k in group if not graph.nodes[k]["leaf"])
+        specs = [type(a["comp"]).ports[a["port"]] for a in ports]
+        domains = {s.domain.name for s in specs}
+        if len(domains) > 1:
+            desc = ", ".join(f"{lab} ({s.domain.name})" for lab, s in zip(labels, specs))
+            raise ConnectionError_(f"incompatible domains joined in one node: {desc}. A node "
+                                   f"joins ports of one domain only.")
+        domain = specs[0].domain
+        if domain is SIGNAL:
+            equations.extend(_signal_set(labels, specs, exposed))
+            continue
+        if len(ports) == 1:
+            via = f" (exposed as {', '.join(exposed)}, but not connected outside)" if exposed \
+                else ""
+            raise CircuitError(
+                f"port {labels[0]!r} ({domain.name}) is not connected{via}. Connect it to "
+                f"another port, or close it explicitly (a Plug for a hydraulic port, a Fixed "
+                f"for a mechanical one).")
+        node_label = "node{" + ", ".join(labels) + "}"
+        across = [E.Expr("sym", (), f"{lab}.{domain.across}") for lab in labels]
+        through = [E.Expr("sym", (), f"{lab}.{domain.through}") for lab in labels]
+        for lab, a in zip(labels[1:], across[1:]):
+            equations.append(_Equation(a - across[0], node_label,
+                                       f"{node_label}: {domain.across} equal at {lab}"))
+        total = through[0]
+        for q in through[1:]:
+            total = total + q
+        equations.append(_Equation(total, node_label,
+                                   f"{node_label}: sum of {domain.through} is zero"))
+    return equations
+
+
+class _PortKey:
+    """A PortRef-like handle on a circuit's exposed port (hashable by owner id and name)."""
+
+    def __init__(self, owner, name):
+        self.owner = owner
+        self.name = name
+
+
+def _signal_set(labels, specs, exposed):
+    outputs = [lab for lab, s in zip(labels, specs) if s.causality == "output"]
+    inputs = [lab for lab, s in zip(labels, specs) if s.causality == "input"]
+    if len(outputs) > 1:
+        raise ConnectionError_(f"signal outputs {outputs} drive one connection; a signal has "
+                               f"exactly one driver. Add a Sum block to combine them.")
+    if not outputs:
+        raise CircuitError(f"signal input(s) {inputs} are not driven by any output. Connect a "
+                           f"source (Constant, Step, ...) or a component's output.")
+    src = E.Expr("sym", (), outputs[0])
+    return [_Equation(E.Expr("sym", (), lab) - src, f"signal{{{outputs[0]}}}",
+                      f"signal {outputs[0]} drives {lab}") for lab in inputs]
+
+
+def _check_symbols(equations, infos, modes):
+    for eq in equations:
+        for op, name in E.leaves(eq.expr, ("sym", "der")):
+            if name not in infos and name not in modes:
+                raise CircuitError(f"{eq.label} uses the unknown variable {name!r}")
+            if op == "der" and name in modes:
+                raise CircuitError(f"{eq.label} differentiates the mode {name!r}")
+
+
+# 4. alias elimination ------------------------------------------------------------------------
+
+def _affine(e: E.Expr):
+    """``(coeffs, const)`` if ``e`` is affine in plain variables (no derivatives), else None."""
+    nodes = E.postorder([e])
+    if len(nodes) > MAX_AFFINE_NODES:
+        return None
+    form: dict[int, tuple[dict, float]] = {}
+    for n in nodes:
+        op = n.op
+        if op == "const":
+            form[id(n)] = ({}, n.value)
+        elif op == "sym" and "#" not in n.value:
+            form[id(n)] = ({n.value: 1.0}, 0.0)
+        elif op in ("add", "sub"):
+            (ca, ka), (cb, kb) = form[id(n.args[0])], form[id(n.args[1])]
+            sign = 1.0 if op == "add" else -1.0
+            c = dict(ca)
+            for v, w in cb.items():
+                c[v] = c.get(v, 0.0) + sign * w
+            form[id(n)] = (c, ka + sign * kb)
+        elif op == "neg":
+            ca, ka = form[id(n.args[0])]
+            form[id(n)] = ({v: -w for v, w in ca.items()}, -ka)
+        elif op == "mul":
+            (ca, ka), (cb, kb) = form[id(n.args[0])], form[id(n.args[1])]
+            if ca and cb:
+                return None
+            if ca:
+                form[id(n)] = ({v: w * kb for v, w in ca.items()}, ka * kb)
+            else:
+                form[id(n)] = ({v: w * ka for v, w in cb.items()}, ka * kb)
+        else:
+            return None
+    coeffs, k = form[id(e)]
+    return {v: w for v, w in coeffs.items() if w != 0.0}, k
+
+
+def _eliminate_aliases(equations, infos, subs):
+    """Remove unknowns defined by affine one- and two-variable equations (in place on subs)."""
+    used_der: set[str] = set()
+    for eq in equations:
+        for op, name in E.leaves(eq.expr, ("der",)):
+            used_der.add(name)
+
+    def resolve(name):
+        coef, target, off = 1.0, name, 0.0
+        while target in subs:
+            c2, t2, o2 = subs[target]
+            coef, target, off = coef * c2, t2, coef * o2 + off
+            if t2 is None:
+                return 0.0, None, off
+        return coef, target, off
+
+    def rank(name):
+        info = infos[name]
+        return (info.start_priority, name in used_der, name.count(".") == 2 and
+                name.endswith((".p", ".x")), -len(name))
+
+    remaining = list(equations)
+    changed = True
+    while changed:
+        changed = False
+        keep = []
+        for eq in remaining:
+            form = _affine(_apply(eq.expr, subs, resolve))
+            if form is None:
+                keep.append(eq)
+                continue
+            coeffs, k = form
+            if len(coeffs) == 0:
+                what = "contradicts the others" if abs(k) > 0 else "repeats the others"
+                raise StructureError(
+                    f"{eq.label} {what}: after fixing the variables the other equations determine, "
+                    f"it reads {k!r} = 0. This happens when two sources fix the same quantity "
+                    f"(two pressure sources on one node, flow sources in series, a port closed "
+                    f"twice). Remove one of them.")
+            if len(coeffs) == 1:
+                (v, a), = coeffs.items()
+                subs[v] = (0.0, None, -k / a)
+                _set_start(infos, v, None, 0.0, -k / a)
+                changed = True
+                continue
+            if len(coeffs) == 2:
+                (u, a), (w, b) = sorted(coeffs.items(), key=lambda kv: rank(kv[0]))
+                # eliminate u (lower rank): u = -(b*w + k)/a
+                subs[u] = (-b / a, w, -k / a)
+                _set_start(infos, u, w, -b / a, -k / a)
+                changed = True
+                continue
+            keep.append(eq)
+        remaining = keep
+    for name in subs:
+        subs[name] = resolve(name)
+    return [_Equation(_apply(eq.expr, subs, resolve), eq.origin, eq.label) for eq in remaining]
+
+
+def _set_start(infos, elim, keep, coef, off):
+    """Carry an eliminated variable's start value to the one it is expressed in."""
+    ie = infos[elim]
+    if keep is None:
+        ie.start = off
+        return
+    ik = infos[keep]
+    if ie.start_priority > ik.start_priority and coef != 0.0:
+        ik.start = (ie.start - off) / coef
+        ik.start_priority = ie.start_priority
+    ie.start = coef * ik.start + off
+
+
+def _apply(e, subs, resolve):
+    if not subs:
+        return e
+
+    def leaf(node):
+        if node.op == "sym" and node.value in subs:
+            coef, target, off = resolve(node.value)
+            if target is None:
+                return E.const(off)
+            return E.const(coef) * E.Expr("sym", (), target) + off
+        if node.op == "der" and node.value in subs:
+            coef, target, _ = resolve(node.value)
+            if target is None or coef == 0.0:
+                return E.ZERO
+            return E.const(coef) * E.Expr("der", (), target)
+        return None
+
+    return E.substitute([e], leaf)[0]
+
+
+# 5. structural checks ------------------------------------------------------------------------
+
+def check_structure(names, eq_labels, inc_y, inc_yp, differential):
+    """Balance, structural regularity and index-one checks; raise StructureError with names.
+
+    ``inc_y`` and ``inc_yp`` are lists (one per equation) of variable indices whose value or
+    derivative the equation touches.
+    """
+    n_eq, n_var = len(eq_labels), len(names)
+    pencil = _incidence(n_eq, n_var, [sorted(set(a) | set(b)) for a, b in zip(inc_y, inc_yp)])
+    match_eq = maximum_bipartite_matching(pencil, perm_type="column")
+    unmatched_eq = [i for i in range(n_eq) if match_eq[i] < 0]
+    matched_vars = {int(j) for j in match_eq if j >= 0}
+    unmatched_var = [j for j in range(n_var) if j not in matched_vars]
+    if n_eq != n_var or unmatched_eq or unmatched_var:
+        head = (f"the system has {n_eq} equations for {n_var} unknowns"
+                if n_eq != n_var else
+                f"the system is structurally singular ({n_eq} equations, {n_var} unknowns, but "
+                f"some equations cannot be solved for any free unknown)")
+        parts = [head + "."]
+        if unmatched_eq:
+            over = _alternating(pencil, unmatched_eq, match_eq, from_equations=True)
+            parts.append("Over-determined (equations with no unknown left to solve for): "
+                         + _list([eq_labels[i] for i in over]))
+        if unmatched_var:
+            under = _alternating(pencil, unmatched_var, match_eq, from_equations=False)
+            parts.append("Under-determined (unknowns no equation determines): "
+                         + _list([names[j] for j in under]))
+        parts.append("Check for missing connections, a missing volume or source, or two "
+                     "components fixing the same quantity.")
+        raise StructureError("\n".join(parts))
+
+    # index one: solvable for (y' of differential variables, y of algebraic variables)
+    cols = [sorted({j for j in b if differential[j]} | {j for j in a if not differential[j]})
+            for a, b in zip(inc_y, inc_yp)]
+    solve_for = _incidence(n_eq, n_var, cols)
+    match1 = maximum_bipartite_matching(solve_for, perm_type="column")
+    bad_eq = [i for i in range(n_eq) if match1[i] < 0]
+    if bad_eq:
+        matched = {int(j) for j in match1 if j >= 0}
+        bad_var = [j for j in range(n_var) if j not in matched]
+        raise StructureError(
+            "the DAE has index above one: these equations constrain differential variables "
+            "algebraically: " + _list([eq_labels[i] for i in bad_eq]) +
+            ". Unknowns left without an equation: " + _list([names[j] for j in bad_var]) +
+            ". Typical causes: an incompressible node between two volumes or masses, a "
+            "position source driving a mass, a flow source into a closed volume-free node. Add "
+            "compliance (a VolumeNode, a spring) or remove the rigid constraint.")
+
+
+def _incidence(n_eq, n_var, cols):
+    rows = np.repeat(np.arange(n_eq), [len(c) for c in cols])
+    flat = np.fromiter((j for c in cols for j in c), dtype=np.int64, count=len(rows))
+    return csr_matrix((np.ones(len(rows)), (rows, flat)), shape=(n_eq, n_var))
+
+
+def _alternating(inc, start, match_eq, *, from_equations):
+    """Equations (or variables) reachable by alternating paths from unmatched ones."""
+    n_eq, n_var = inc.shape
+    var_of_eq = match_eq
+    eq_of_var = np.full(n_var, -1)
+    for i, j in enumerate(var_of_eq):
+        if j >= 0:
+            eq_of_var[j] = i
+    csc = inc.tocsc()
+    seen = set(start)
+    frontier = list(start)
+    while frontier:
+        nxt = []
+        for k in frontier:
+            if from_equations:  # equation -> its variables -> the equations matched to them
+                for j in inc.indices[inc.indptr[k]:inc.indptr[k + 1]]:
+                    i = eq_of_var[j]
+                    if i >= 0 and i not in seen:
+                        seen.add(i)
+                        nxt.append(i)
+            else:  # variable -> equations touching it -> the variables matched to them
+                for i in csc.indices[csc.indptr[k]:csc.indptr[k + 1]]:
+                    j = var_of_eq[i]
+                    if j >= 0 and j not in seen:
+                        seen.add(j)
+                        nxt.append(j)
+        frontier = nxt
+    return sorted(seen)
+
+
+def _list(items):
+    items = list(items)
+    text = "; ".join(items[:NAMES_IN_MESSAGES])
+    if len(items) > NAMES_IN_MESSAGES:
+        text += f"; ... ({len(items) - NAMES_IN_MESSAGES} more)"
+    return text

@@ -1,0 +1,351 @@
+"""Domains, ports, variables and the component base class.
+
+Sign convention (stated once, obeyed everywhere): the through variable of a port is positive
+*into* the component. A hydraulic port carries pressure ``p`` [Pa, gauge] and volume flow ``q``
+[m^3/s] from the connection node into the component; a mechanical translational port carries
+position ``x`` [m] and force ``f`` [N], the force the node exerts on the component in the +x
+direction. Signal ports are causal: one output drives any number of inputs.
+
+A component declares its parameters (a frozen pydantic model), ports, internal variables and
+discrete modes, and writes its equations as residuals, acausally::
+
+    class LaminarOrifice(Component):
+        Params = LaminarOrificeParams
+        ports = {"a": Hydraulic("inlet"), "b": Hydraulic("outlet")}
+
+        def equations(self, v, p):
+            q = v.observe("q", p.K * (v.a.p - v.b.p), "m^3/s", "flow a -> b")
+            return [v.a.q - q, v.a.q + v.b.q]
+
+``equations`` runs once, at compile time, with symbols (see :mod:`pvgraph.expr`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable, ClassVar
+
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+from . import expr as E
+from .errors import CircuitError, ParameterError
+
+__all__ = [
+    "Domain", "HYDRAULIC", "MECHANICAL", "SIGNAL", "Port", "Hydraulic", "Mechanical",
+    "SignalIn", "SignalOut", "Variable", "Params", "NoParams", "Component", "PortRef", "der",
+    "EventSpec", "Observed",
+]
+
+
+@dataclass(frozen=True)
+class Domain:
+    """A physical domain: the across/through variable pair of its ports."""
+
+    name: str
+    across: str
+    across_unit: str
+    across_nominal: float
+    through: str | None
+    through_unit: str | None
+    through_nominal: float | None
+
+
+HYDRAULIC = Domain("hydraulic", "p", "Pa", 1e6, "q", "m^3/s", 1e-4)
+MECHANICAL = Domain("mechanical", "x", "m", 1e-3, "f", "N", 10.0)
+SIGNAL = Domain("signal", "u", "", 1.0, None, None, None)
+
+
+@dataclass(frozen=True)
+class Port:
+    """A port declaration: its domain, a description and, for signals, its causality."""
+
+    domain: Domain
+    description: str = ""
+    causality: str | None = None  # "input" or "output" for signal ports
+    unit: str | None = None
+    nominal: float | None = None
+
+    @property
+    def across_unit(self) -> str:
+        return self.unit if self.unit is not None else self.domain.across_unit
+
+    @property
+    def across_nominal(self) -> float:
+        return self.nominal if self.nominal is not None else self.domain.across_nominal
+
+
+def Hydraulic(description: str = "") -> Port:
+    """A hydraulic port: pressure ``p`` [Pa], flow ``q`` [m^3/s] positive into the component."""
+    return Port(HYDRAULIC, description)
+
+
+def Mechanical(description: str = "") -> Port:
+    """A mechanical translational port: position ``x`` [m], force ``f`` [N] into the component."""
+    return Port(MECHANICAL, description)
+
+
+def SignalIn(description: str = "", unit: str = "", nominal: float = 1.0) -> Port:
+    """A causal signal input, driven by exactly one output."""
+    return Port(SIGNAL, description, "input", unit, nominal)
+
+
+def SignalOut(description: str = "", unit: str = "", nominal: float = 1.0) -> Port:
+    """A causal signal output; drives any number of inputs."""
+    return Port(SIGNAL, description, "output", unit, nominal)
+
+
+@dataclass(frozen=True)
+class Variable:
+    """An internal variable: unit, start value (or guess), nominal magnitude, description.
+
+    A variable whose derivative appears in an equation is differential; its start value is its
+    initial condition. Otherwise it is algebraic and its start value is the first Newton guess.
+    ``start`` may be a callable of the parameters, e.g. ``lambda p: p.x0``.
+    """
+
+    unit: str = ""
+    start: float | Callable[[Any], float] = 0.0
+    nominal: float = 1.0
+    description: str = ""
+
+
+class Params(BaseModel):
+    """Base of parameter models: frozen, no unknown fields, finite numbers only."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+
+class NoParams(Params):
+    """A component without parameters."""
+
+
+@dataclass
+class Observed:
+    """A derived output: an expression evaluated on a solution after the run."""
+
+    expr: E.Expr
+    unit: str
+    description: str
+
+
+@dataclass
+class EventSpec:
+    """A zero-crossing function with the mode switch that happens at the crossing.
+
+    ``action(modes)`` receives a mapping of the component's own mode names to values and sets
+    new values; after it the solver recomputes consistent initial values and restarts.
+    """
+
+    name: str
+    condition: E.Expr
+    direction: int = 0
+    action: Callable[[Any], None] | None = None
+    terminal: bool = False
+
+
+def der(e) -> E.Expr:
+    """Time derivative of an expression of variables (linear in the derivatives)."""
+    e = E.as_expr(e)
+    if e.op == "sym":
+        return E.Expr("der", (), e.value)
+    if e.op == "const":
+        return E.ZERO
+    total = E.ZERO
+    for op, name in E.leaves(e, ("sym", "time", "der", "mode")):
+        if op == "der":
+            raise TypeError(f"second derivative of {name!r}: introduce a velocity variable")
+        if op == "mode":
+            continue
+        partial = E.differentiate(e, (op, name))
+        total = total + partial * (E.ONE if op == "time" else E.Expr("der", (), name))
+    return total
+
+
+class PortRef:
+    """A reference to one port of a component or circuit, as used in ``connect``."""
+
+    __slots__ = ("owner", "name")
+
+    def __init__(self, owner, name: str):
+        self.owner = owner
+        self.name = name
+
+    @property
+    def port(self) -> Port:
+        return self.owner._port_spec(self.name)
+
+    def path(self) -> str:
+        return f"{self.owner.path}.{self.name}"
+
+    def __repr__(self):
+        return f"<port {self.path()}>"
+
+
+class _PortSymbols:
+    """The symbols of one port during tracing: ``.p``/``.q`` or ``.x``/``.f``."""
+
+    def __init__(self, prefix: str, port: Port):
+        d = port.domain
+        setattr(self, d.across, E.Expr("sym", (), f"{prefix}.{d.across}"))
+        if d.through:
+            setattr(self, d.through, E.Expr("sym", (), f"{prefix}.{d.through}"))
+
+
+class Symbols:
+    """What ``equations(v, p)`` receives as ``v``: the component's variables as symbols."""
+
+    def __init__(self, component: "Component", prefix: str):
+        self._component = component
+        self._prefix = prefix
+        self.t = E.Expr("time")
+        self.observed: dict[str, Observed] = {}
+        self.events: list[EventSpec] = []
+        for name, port in component.ports.items():
+            if port.domain is SIGNAL:
+                object.__setattr__(self, name, E.Expr("sym", (), f"{prefix}.{name}"))
+            else:
+                object.__setattr__(self, name, _PortSymbols(f"{prefix}.{name}", port))
+        for name in component.variables:
+            object.__setattr__(self, name, E.Expr("sym", (), f"{prefix}.{name}"))
+
+    def __getattr__(self, name):
+        comp = self.__dict__.get("_component")
+        raise AttributeError(
+            f"{type(comp).__name__} at {self.__dict__.get('_prefix')!r} has no port or variable "
+            f"{name!r}; ports: {sorted(comp.ports)}, variables: {sorted(comp.variables)}")
+
+    def mode(self, name: str) -> E.Expr:
+        """The current value of one of the component's discrete modes."""
+        if name not in self._component.modes:
+            raise CircuitError(f"{type(self._component).__name__} at {self._prefix!r} has no "
+                               f"mode {name!r}; declare it in `modes`")
+        return E.Expr("sym", (), f"{self._prefix}.#{name}")
+
+    def observe(self, name: str, expression, unit: str = "", description: str = "") -> E.Expr:
+        """Register a derived output (available in results as ``<component>.<name>``)."""
+        expression = E.as_expr(expression)
+        self.observed[name] = Observed(expression, unit, description)
+        return expression
+
+    def event(self, name: str, condition, *, direction: int = 0,
+              action: Callable[[Any], None] | None = None, terminal: bool = False) -> None:
+        """Declare a zero-crossing ``condition`` (an expression) and the mode switch at it."""
+        self.events.append(EventSpec(name, E.as_expr(condition), direction, action, terminal))
+
+
+class Component:
+    """Base class of every component.
+
+    Subclasses set ``Params`` (a :class:`Params` model), ``ports``, ``variables`` and ``modes``
+    and implement ``equations(v, p)`` returning the list of residual expressions. Build one with
+    keyword parameters, ``Orifice(A=mm2(2.2))``, or a ready model, ``Orifice(params)``. Start
+    values may be overridden per instance: ``VolumeNode(V=..., start={"port.p": bar(10)})``.
+    """
+
+    Params: ClassVar[type[Params]] = NoParams
+    ports: ClassVar[dict[str, Port]] = {}
+    variables: ClassVar[dict[str, Variable]] = {}
+    modes: ClassVar[dict[str, float]] = {}
+
+    def __init__(self, params: Params | None = None, *, start: dict[str, float] | None = None,
+                 **kwargs):
+        cls = type(self)
+        if params is not None and kwargs:
+            raise ParameterError(f"{cls.__name__}: give either a parameter model or keyword "
+                                 f"parameters, not both")
+        if params is None:
+            try:
+                params = cls.Params(**kwargs)
+            except ValidationError as exc:
+                raise ParameterError(_describe_validation(cls.__name__, exc)) from None
+        elif not isinstance(params, cls.Params):
+            raise ParameterError(f"{cls.__name__} takes parameters of type {cls.Params.__name__}, "
+                                 f"got {type(params).__name__}")
+        self.params = params
+        self._start = dict(start or {})
+        self._name: str | None = None
+        self._parent = None
+        known = set(cls.variables) | {f"{n}.{pt.domain.across}" for n, pt in cls.ports.items()}
+        known |= {n for n, pt in cls.ports.items() if pt.domain is SIGNAL}
+        for key in self._start:
+            if key not in known:
+                raise CircuitError(f"{cls.__name__}: start value for unknown variable {key!r}; "
+                                   f"known: {sorted(known)}")
+
+    # interface the subclass implements -------------------------------------------------------
+    def equations(self, v: Symbols, p: Params) -> list:
+        """Residual expressions; zero when the component's physics holds."""
+        raise NotImplementedError(f"{type(self).__name__} does not define equations()")
+
+    def starts(self, p: Params) -> dict[str, float]:
+        """Start values that depend on the parameters (override in subclasses)."""
+        return {}
+
+    # framework side ----------------------------------------------------------------------------
+    @property
+    def path(self) -> str:
+        if self._name is None:
+            return type(self).__name__
+        parent = self._parent.path if self._parent is not None and self._parent._parent is not None \
+            else None
+        return f"{parent}.{self._name}" if parent else self._name
+
+    def _port_spec(self, name: str) -> Port:
+        try:
+            return type(self).ports[name]
+        except KeyError:
+            raise CircuitError(_unknown_port_message(self, name, type(self).ports)) from None
+
+    def __getattr__(self, name):
+        if name.startswith("_"):
+            raise AttributeError(name)
+        ports = type(self).ports
+        if name in ports:
+            return PortRef(self, name)
+        raise AttributeError(_unknown_port_message(self, name, ports))
+
+    def start_values(self) -> dict[str, float]:
+        """All start values of this instance: declared, parameter-derived, then overrides."""
+        values = {}
+        for name, var in type(self).variables.items():
+            values[name] = var.start(self.params) if callable(var.start) else var.start
+        values.update(self.starts(self.params))
+        values.update(self._start)
+        return values
+
+    def trace(self, prefix: str):
+        """Run ``equations`` with symbols; return (residuals, symbols)."""
+        v = Symbols(self, prefix)
+        residuals = self.equations(v, self.params)
+        if not isinstance(residuals, (list, tuple)):
+            raise CircuitError(f"{type(self).__name__}.equations must return a list of residual "
+                               f"expressions, got {type(residuals).__name__}")
+        return [E.as_expr(r) for r in residuals], v
+
+    def __repr__(self):
+        return f"<{type(self).__name__} {self.path}>"
+
+
+def _unknown_port_message(owner, name, ports) -> str:
+    import difflib
+    close = difflib.get_close_matches(name, list(ports), n=1)
+    hint = f" Did you mean {close[0]!r}?" if close else ""
+    return (f"{type(owner).__name__} {getattr(owner, 'path', '')!r} has no port {name!r}; its "
+            f"ports are {sorted(ports)}.{hint}")
+
+
+def _describe_validation(where: str, exc: ValidationError) -> str:
+    lines = []
+    for err in exc.errors():
+        loc = ".".join(str(x) for x in err["loc"]) or "(model)"
+        value = err.get("input")
+        lines.append(f"  {loc} = {value!r}: {err['msg']}")
+    return f"invalid parameters for {where}:\n" + "\n".join(lines)
+
+
+def finite(value: float, what: str) -> float:
+    """``value`` if finite, else a :class:`ParameterError` naming ``what``."""
+    if not math.isfinite(value):
+        raise ParameterError(f"{what} must be finite, got {value!r}")
+    return value

@@ -1,0 +1,52 @@
+"""The pvgraph exception hierarchy.
+
+Every error names what is at fault (component, port, parameter or variable, and the time where
+relevant) and, where it can, says what to do about it.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "PvgraphError",
+    "CircuitError",
+    "ConnectionError_",
+    "ParameterError",
+    "StructureError",
+    "InitializationError",
+    "SolverError",
+]
+
+
+class PvgraphError(Exception):
+    """Base class of every error raised by pvgraph."""
+
+
+class CircuitError(PvgraphError):
+    """A circuit is assembled wrongly: unknown or duplicate names, unconnected ports."""
+
+
+class ConnectionError_(CircuitError):
+    """Ports that cannot be joined: incompatible domains, two outputs driving one input."""
+
+
+class ParameterError(PvgraphError):
+    """A parameter is missing, non-finite or out of its allowed range."""
+
+
+class StructureError(PvgraphError):
+    """The compiled equations are unbalanced, structurally singular or of index above one."""
+
+
+class InitializationError(PvgraphError):
+    """No consistent initial condition or operating point could be found."""
+
+
+class SolverError(PvgraphError):
+    """The time integration failed (step size too small, repeated Newton or error test failure)."""
+
+    def __init__(self, message: str, *, t: float | None = None, h: float | None = None,
+                 culprits: list[str] | None = None):
+        super().__init__(message)
+        self.t = t
+        self.h = h
+        self.culprits = list(culprits or [])

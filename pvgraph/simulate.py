@@ -1,0 +1,186 @@
+"""Run a circuit or a compiled system in time and address the results by name."""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import tempfile
+from typing import Iterable
+
+import numpy as np
+
+from .circuit import Circuit
+from .errors import PvgraphError
+from .system import System
+
+__all__ = ["simulate", "Solution"]
+
+SOLVERS = ("pvgraph", "ida")
+
+
+class Solution:
+    """Times, values and derivatives of every variable of a run, addressed by dotted name.
+
+    ``sol["pvb.main_spool.flange.x"]`` is the array over ``sol.t``; ``sol.der(name)`` its time
+    derivative; derived outputs (an orifice's ``q``, a spool's flow force) are addressed the same
+    way. ``sol.unit(name)`` gives the unit.
+    """
+
+    def __init__(self, system: System, t, y, yp, *, events=(), stats=None, mode_log=None,
+                 solver="pvgraph"):
+        self.system = system
+        self.t = np.asarray(t)
+        self.y = np.asarray(y)
+        self.yp = np.asarray(yp)
+        self.events = list(events)
+        self.stats = dict(stats or {})
+        self.solver = solver
+        self._mode_log = list(mode_log or [(-math.inf, tuple(system.mode_start))])
+        self._observed = None
+
+    @property
+    def names(self) -> list[str]:
+        """Every name that can be looked up."""
+        return self.system.all_names()
+
+    def _modes_per_time(self):
+        times = [t for t, _ in self._mode_log]
+        rows = [m for _, m in self._mode_log]
+        idx = np.searchsorted(times, self.t, side="right") - 1
+        return np.asarray([rows[max(i, 0)] for i in idx], dtype=float).reshape(len(self.t), -1)
+
+    def _observed_values(self):
+        if self._observed is None:
+            self._observed = self.system.evaluate_observed(self.t, self.y, self.yp,
+                                                           self._modes_per_time())
+        return self._observed
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name in self.system.observed:
+            return self._observed_values()[name]
+        coef, idx, off = self.system.resolve(name)
+        if idx is None:
+            return np.full(len(self.t), off)
+        return coef * self.y[:, idx] + off
+
+    def der(self, name: str) -> np.ndarray:
+        """Time derivative of a variable over the run."""
+        if name in self.system.observed:
+            return np.gradient(self[name], self.t)
+        coef, idx, _ = self.system.resolve(name)
+        if idx is None:
+            return np.zeros(len(self.t))
+        return coef * self.yp[:, idx]
+
+    def __contains__(self, name: str) -> bool:
+        try:
+            self.unit(name)
+        except KeyError:
+            return False
+        return True
+
+    def unit(self, name: str) -> str:
+        return self.system.unit(name)
+
+    def final(self, name: str) -> float:
+        """Value at the last time point."""
+        return float(self[name][-1])
+
+    def at(self, name: str, t: float) -> float:
+        """Value at time ``t`` (linear interpolation between output points)."""
+        return float(np.interp(t, self.t, self[name]))
+
+    def to_csv(self, path, names: Iterable[str] | None = None) -> None:
+        """Write time and the named variables (default: all unknowns) to ``path`` atomically."""
+        names = list(names) if names is not None else list(self.system.names)
+        cols = [self[n] for n in names]
+        header = ["t [s]"] + [f"{n} [{self.unit(n)}]" for n in names]
+        _atomic_write(path, lambda f: _write_csv(f, header, self.t, cols))
+
+    def __repr__(self):
+        return (f"<Solution of {self.system.name}: {len(self.t)} points, t = {self.t[0]:g} .. "
+                f"{self.t[-1]:g} s, {len(self.events)} events>")
+
+
+def _write_csv(f, header, t, cols):
+    w = csv.writer(f)
+    w.writerow(header)
+    for k in range(len(t)):
+        w.writerow([repr(float(t[k]))] + [repr(float(c[k])) for c in cols])
+
+
+def _atomic_write(path, write):
+    path = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    os.makedirs(folder, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=os.path.basename(path))
+    try:
+        with os.fdopen(fd, "w", newline="") as f:
+            write(f)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
+             atol: float | None = None, solver: str = "pvgraph", t_eval=None,
+             max_step: float | None = None, start: dict[str, float] | None = None,
+             calc_initial: str | None = "algebraic", y0=None, yp0=None, **options) -> Solution:
+    """Simulate a circuit (compiled on the fly) or a :class:`System` from ``t_start`` to ``t_end``.
+
+    Parameters
+    ----------
+    target : Circuit or System
+    t_end : float
+        End time [s].
+    rtol : float
+        Relative tolerance.
+    atol : float, optional
+        Absolute tolerance in units of each variable's nominal magnitude (default ``rtol``), so
+        a pressure (nominal 10 bar) gets ``atol * 1e6`` Pa and a spool position (nominal 1 mm)
+        ``atol * 1e-3`` m.
+    solver : {"pvgraph", "ida"}
+        The built-in IDA-style solver, or SUNDIALS IDA through scikit-sundae.
+    t_eval : array, optional
+        Output times; default every internal step.
+    start : dict, optional
+        Start values by variable name, overriding the components' (``{"node.port.p": 1e6}``).
+    y0, yp0 : array, optional
+        Full initial vectors (e.g. a previous operating point); ``start`` is applied on top.
+    calc_initial : {"algebraic", "all", None}
+        How to make the initial values consistent (see :func:`pvgraph.solver.solve_dae`).
+    """
+    system = target.compile() if isinstance(target, Circuit) else target
+    if not isinstance(system, System):
+        raise PvgraphError(f"simulate() takes a Circuit or a System, got {type(target).__name__}")
+    if solver not in SOLVERS:
+        raise PvgraphError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
+    if not (math.isfinite(t_end) and t_end > t_start):
+        raise PvgraphError(f"t_end ({t_end!r}) must be finite and greater than t_start "
+                           f"({t_start!r})")
+    y_init = np.array(system.y0 if y0 is None else y0, dtype=float)
+    yp_init = np.array(system.yp0 if yp0 is None else yp0, dtype=float)
+    for name, value in (start or {}).items():
+        coef, idx, off = system.resolve(name)
+        if idx is None or coef == 0.0:
+            raise PvgraphError(f"start value for {name!r}: it is fixed to {off!r} by the circuit")
+        y_init[idx] = (value - off) / coef
+    atol_vec = (rtol if atol is None else atol) * system.nominal
+    system.reset_modes()
+    kwargs = dict(rtol=rtol, atol=atol_vec, algebraic=system.algebraic,
+                  jac=system.solver_jacobian(), jac_sparsity=system.jac_sparsity,
+                  events=system.solver_events() or None, t_eval=t_eval, max_step=max_step,
+                  calc_initial=calc_initial, var_names=system.names, **options)
+    if solver == "pvgraph":
+        from .solver import solve_dae
+        res = solve_dae(system.residual, (t_start, t_end), y_init, yp_init, **kwargs)
+    else:
+        from .solver import solve_dae_sundials
+        res = solve_dae_sundials(system.residual, (t_start, t_end), y_init, yp_init, **kwargs)
+    if not res.success:
+        raise PvgraphError(f"{system.name}: simulation stopped early: {res.message}")
+    return Solution(system, res.t, res.y, res.yp, events=res.events, stats=res.stats,
+                    mode_log=system.mode_log, solver=solver)
