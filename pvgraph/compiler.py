@@ -399,6 +399,8 @@ def check_structure(names, eq_labels, inc_y, inc_yp, differential):
     derivative the equation touches.
     """
     n_eq, n_var = len(eq_labels), len(names)
+    if n_eq == 0 and n_var == 0:
+        return  # everything was fixed by alias elimination
     pencil = _incidence(n_eq, n_var, [sorted(set(a) | set(b)) for a, b in zip(inc_y, inc_yp)])
     match_eq = maximum_bipartite_matching(pencil, perm_type="column")
     unmatched_eq = [i for i in range(n_eq) if match_eq[i] < 0]

@@ -170,6 +170,10 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         y_init[idx] = (value - off) / coef
     atol_vec = (rtol if atol is None else atol) * system.nominal
     system.reset_modes()
+    if system.n == 0:  # the circuit is fully determined algebraically: nothing to integrate
+        t = np.asarray(t_eval if t_eval is not None else [t_start, t_end], dtype=float)
+        return Solution(system, t, np.zeros((len(t), 0)), np.zeros((len(t), 0)),
+                        mode_log=system.mode_log, solver=solver)
     kwargs = dict(rtol=rtol, atol=atol_vec, algebraic=system.algebraic,
                   jac=system.solver_jacobian(), jac_sparsity=system.jac_sparsity,
                   events=system.solver_events() or None, t_eval=t_eval, max_step=max_step,

