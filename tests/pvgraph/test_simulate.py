@@ -1,0 +1,145 @@
+"""Simulating compiled circuits: analytic transients, events with modes, results by name."""
+
+import csv
+import math
+
+import numpy as np
+import pytest
+
+from components import FlowSource, LaminarOrifice, Orifice, Tank, VolumeNode
+from pvgraph import Circuit, Component, Hydraulic, Params
+from pvgraph.errors import PvgraphError
+from pvgraph.simulate import simulate
+from pvgraph.units import bar, litre, lpm, lpm_per_bar, mm2
+from pydantic import Field
+
+from test_compiler import demo
+
+Q = lpm(10.0)
+K = lpm_per_bar(0.5)
+V = litre(0.5)
+BETA = 7e8
+
+
+def test_laminar_drain_fills_exponentially():
+    """V/beta dp/dt = Q - K p: p(t) = Q/K (1 - exp(-t/tau)), tau = V/(beta K)."""
+    tau = V / (BETA * K)
+    t = np.linspace(0.0, 5 * tau, 11)
+    sol = simulate(demo(), 5 * tau, rtol=1e-8, t_eval=t)
+    exact = Q / K * (1.0 - np.exp(-t / tau))
+    assert np.max(np.abs(sol["node.port.p"] - exact)) < 1e-5 * Q / K
+    # derived outputs and aliases follow: the orifice carries K p, the tank is at zero
+    assert np.allclose(sol["orifice.q"], K * exact, rtol=1e-5, atol=1e-12)
+    assert np.all(sol["tank.port.p"] == 0.0)
+    assert sol.unit("node.port.p") == "Pa" and sol.unit("orifice.q") == "m^3/s"
+    assert sol.stats["nsteps"] < 300
+
+
+def test_parallel_volumes_behave_as_their_sum():
+    c = demo()
+    extra = c.add("extra", VolumeNode(V=2 * V))
+    c.connect(extra.port, "node.port")
+    tau = 3 * V / (BETA * K)
+    sol = simulate(c, 2 * tau, rtol=1e-8, t_eval=[tau, 2 * tau])
+    exact = Q / K * (1.0 - np.exp(-np.array([tau, 2 * tau]) / tau))
+    assert np.allclose(sol["node.port.p"], exact, rtol=1e-6)
+    # the flow splits between the volumes in proportion to their size
+    assert np.allclose(sol["extra.port.q"], 2 * sol["node.port.q"], rtol=1e-6)
+
+
+def test_turbulent_discharge_has_linear_root_pressure():
+    """A volume discharging through a turbulent orifice: sqrt(p) falls linearly in time."""
+    Cd, A, rho, p0 = 0.6, mm2(1.0), 870.0, bar(100)
+    c = Circuit("discharge")
+    node = c.add("node", VolumeNode(V=V, p0=p0))
+    orf = c.add("orifice", Orifice(A=A, Cd=Cd, rho=rho, dp_t=bar(0.01)))
+    c.connect(node.port, orf.a)
+    c.connect(orf.b, c.add("tank", Tank()).port)
+    # V/beta dp/dt = -Cd A sqrt(2p/rho)  =>  sqrt(p) = sqrt(p0) - beta Cd A / (V sqrt(2 rho)) t
+    rate = BETA * Cd * A / (V * math.sqrt(2 * rho))
+    t_end = 0.8 * math.sqrt(p0) / rate  # stays well above the transition band
+    t = np.linspace(0, t_end, 9)
+    sol = simulate(c, t_end, rtol=1e-8, t_eval=t)
+    assert np.allclose(np.sqrt(sol["node.port.p"]), math.sqrt(p0) - rate * t,
+                       rtol=2e-4, atol=0)
+
+
+class StepParams(Params):
+    t_step: float = Field(..., ge=0.0, description="Switching time [s]")
+    Q: float = Field(..., description="Flow after the step [m^3/s]")
+
+
+class SwitchedSource(Component):
+    """A flow source that switches on at t_step through an event and a mode."""
+
+    Params = StepParams
+    ports = {"port": Hydraulic()}
+    modes = {"on": 0.0}
+
+    def equations(self, v, p):
+        v.event("switch", v.t - p.t_step, direction=1,
+                action=lambda modes: modes.__setitem__("on", 1.0))
+        return [v.port.q + p.Q * v.mode("on")]
+
+
+def test_event_switches_a_mode_at_the_right_time():
+    c = Circuit("switched")
+    src = c.add("src", SwitchedSource(t_step=0.1, Q=Q))
+    node = c.add("node", VolumeNode(V=V))
+    orf = c.add("orifice", LaminarOrifice(K=K))
+    c.connect(src.port, node.port, orf.a)
+    c.connect(orf.b, c.add("tank", Tank()).port)
+    tau = V / (BETA * K)
+    t = np.array([0.05, 0.1 + tau, 0.1 + 3 * tau])
+    sol = simulate(c, 0.1 + 3 * tau, rtol=1e-8, t_eval=t)
+    assert len(sol.events) == 1
+    assert sol.events[0].t == pytest.approx(0.1, abs=1e-9)
+    exact = np.where(t < 0.1, 0.0, Q / K * (1 - np.exp(-(t - 0.1) / tau)))
+    assert np.allclose(sol["node.port.p"], exact, rtol=1e-5, atol=1.0)
+    # the mode is part of the results' history: the source's flow reads the mode at each time
+    assert sol["src.port.q"][0] == 0.0  # alias of -Q * mode, before the event
+
+
+def test_same_system_runs_on_sundials_ida_and_agrees():
+    pytest.importorskip("sksundae")
+    tau = V / (BETA * K)
+    t = np.linspace(0.0, 3 * tau, 7)
+    system = demo().compile()
+    ours = simulate(system, 3 * tau, rtol=1e-8, t_eval=t)
+    ida = simulate(system, 3 * tau, rtol=1e-8, t_eval=t, solver="ida")
+    assert np.allclose(ours["node.port.p"], ida["node.port.p"], rtol=1e-6, atol=1e-3)
+
+
+def test_start_values_by_name_and_bad_names():
+    system = demo().compile()
+    sol = simulate(system, 1e-3, start={"node.port.p": bar(5)}, t_eval=[0.0, 1e-3])
+    assert sol["node.port.p"][0] == pytest.approx(bar(5))
+    with pytest.raises(KeyError, match="node.port.p"):
+        simulate(system, 1e-3, start={"node.port.pp": 1.0})
+    with pytest.raises(PvgraphError, match="fixed"):
+        simulate(system, 1e-3, start={"tank.port.p": 1.0})
+    with pytest.raises(PvgraphError, match="t_end"):
+        simulate(system, -1.0)
+    with pytest.raises(PvgraphError, match="unknown solver"):
+        simulate(system, 1.0, solver="euler")
+
+
+def test_solution_csv_is_complete(tmp_path):
+    sol = simulate(demo(), 1e-2, t_eval=np.linspace(0, 1e-2, 5))
+    path = tmp_path / "out" / "run.csv"
+    sol.to_csv(path, ["node.port.p", "orifice.q"])
+    rows = list(csv.reader(open(path)))
+    assert rows[0] == ["t [s]", "node.port.p [Pa]", "orifice.q [m^3/s]"]
+    assert len(rows) == 6
+    assert float(rows[-1][1]) == pytest.approx(sol.final("node.port.p"))
+    assert not [p for p in path.parent.iterdir() if p.name.startswith(".tmp-")]
+
+
+def test_fully_algebraic_circuit_still_reports():
+    c = Circuit("fixed")
+    src = c.add("src", FlowSource(Q=Q))
+    orf = c.add("orifice", LaminarOrifice(K=K))
+    c.connect(src.port, orf.a)
+    c.connect(orf.b, c.add("tank", Tank()).port)
+    sol = simulate(c, 1.0)
+    assert sol.final("orifice.a.p") == pytest.approx(Q / K)
