@@ -1,0 +1,225 @@
+"""Validation of the PVG 32 model against the lab measurements (report 4.7, appendix B.7).
+
+Each of the 19 scenarios (:mod:`circuits.scenarios`) runs the full nonlinear valve on the rig:
+the valve starts at rest and settles with L2 in its initial state; solenoid-step tests then
+switch L2 and run on. The steady values at the end are compared with the measured ones, and the
+pressure drop over L3 after the step is kept as a trace (the report's figures 4.41-4.48).
+
+``validate()`` runs the scenarios on a process pool; ``comparison_records()`` turns the results
+into the ``{scenario, quantity, unit, measured, simulated}`` records written by
+``pvgraph validate --json``; ``targets()`` checks the issue's acceptance targets.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pvgraph.errors import PvgraphError
+from pvgraph.simulate import simulate
+from pvgraph.units import to_bar, to_lpm
+
+from .pvg32.parameters import PVG32Params, report_tuned
+from .rig import build_rig, laminar_load, turbulent_load
+from .scenarios import Scenario, all_scenarios, get_scenario
+
+__all__ = ["ScenarioResult", "run_scenario", "validate", "comparison_records", "targets",
+           "format_table", "QUANTITIES"]
+
+SETTLE_TIME = 8.0      # [s] from rest to the steady state the step starts from
+AFTER_STEP = 2.0       # [s] simulated after the solenoid step
+TRACE_WINDOW = 1.0     # [s] the window of the report's dynamic comparison (4.7.3)
+RTOL = 1e-5
+
+#: quantity -> (unit of the table, converter from SI)
+QUANTITIES = {
+    "Q_total": ("L/min", to_lpm),
+    "Q_branch": ("L/min", to_lpm),
+    "Pf": ("bar", to_bar),
+    "Pm": ("bar", to_bar),
+    "Pb": ("bar", to_bar),
+}
+
+
+@dataclass
+class ScenarioResult:
+    """Simulated steady values (SI), margins, the post-step trace and run statistics."""
+
+    name: str
+    simulated: dict
+    margins: dict
+    trace_t: np.ndarray = field(repr=False)
+    trace_dp_L3: np.ndarray = field(repr=False)
+    settled: bool = True
+    settle_deviation: float = 0.0
+    wall_time: float = 0.0
+    steps: int = 0
+    error: str | None = None
+
+    @property
+    def scenario(self) -> Scenario:
+        return get_scenario(self.name)
+
+
+def _build(scenario: Scenario, p: PVG32Params, law: str, t_switch: float | None):
+    make = laminar_load if law == "laminar" else turbulent_load
+    load = make(p, L1=scenario.orifice_L1 or "small", L3=scenario.orifice_L3,
+                l2_open=scenario.l2_open_initially, t_switch=t_switch)
+    return build_rig(p, load=load, U_input=scenario.U_input)
+
+
+def run_scenario(scenario: Scenario | str, params: PVG32Params | None = None, *,
+                 law: str = "laminar", settle: float = SETTLE_TIME, after: float = AFTER_STEP,
+                 rtol: float = RTOL, solver: str = "pvgraph") -> ScenarioResult:
+    """Simulate one scenario and return its steady values and post-step trace."""
+    scenario = get_scenario(scenario) if isinstance(scenario, str) else scenario
+    p = params or report_tuned()
+    step = scenario.solenoid_event in ("opening", "closing")
+    t_switch = settle if step else None
+    t_end = settle + after if step else settle
+    system = _build(scenario, p, law, t_switch).compile()
+    t_eval = np.concatenate([np.linspace(0.0, settle, 81)[:-1],
+                             np.linspace(settle, t_end, 201)]) if step else \
+        np.linspace(0.0, settle, 161)
+    t0 = time.perf_counter()
+    sol = simulate(system, t_end, rtol=rtol, t_eval=t_eval, solver=solver)
+    wall = time.perf_counter() - t0
+    q_l2, q_l3 = sol["load.L2.q"], sol["load.L3.q"]
+    pf, pm, pb = sol["load.f.port.p"], sol["load.m.port.p"], sol["load.b.port.p"]
+    simulated = {"Q_total": q_l2[-1] + q_l3[-1], "Q_branch": q_l2[-1], "Pf": pf[-1],
+                 "Pm": pm[-1], "Pb": pb[-1]}
+    margins = {
+        "pump_margin": sol.final("pvg.pvp.Vp.port.p") - sol.final("pvg.pvb.V2.port.p"),
+        "main_spool_drop": sol.final("pvg.pvb.PK.port.p") - pf[-1],
+        "main_spool_x": sol.final("pvg.pvb.main_spool.flange.x"),
+        "pump_relief_flow": sol.final("pvg.pvp.A3.q"),
+    }
+    t_ref = settle if step else 0.0
+    window = (sol.t >= t_ref) & (sol.t <= t_ref + TRACE_WINDOW + 1e-12)
+    dp_l3 = pf - pb
+    # settled: within 0.5 s of the step (or of the end of the settling run) the load pressure
+    # stays within 0.5 bar or 2 % of its final value
+    late = sol.t >= (t_ref + 0.5 if step else settle - 1.0)
+    deviation = float(np.max(np.abs(pf[late] - pf[-1])))
+    settled = deviation <= max(0.5e5, 0.02 * abs(pf[-1]))
+    return ScenarioResult(scenario.name, simulated, margins, sol.t[window] - t_ref,
+                          dp_l3[window], settled, deviation, wall, sol.stats.get("nsteps", 0))
+
+
+def _run_safely(args):
+    name, params, law = args
+    try:
+        return run_scenario(name, params, law=law)
+    except PvgraphError as exc:
+        return ScenarioResult(name, {}, {}, np.zeros(0), np.zeros(0), False, math.nan,
+                              error=f"{type(exc).__name__}: {exc}")
+
+
+def validate(params: PVG32Params | None = None, names: list[str] | None = None, *,
+             law: str = "laminar", workers: int | None = None, progress=None) -> list:
+    """Run the named scenarios (default all 19) in parallel; failures are recorded, not raised."""
+    names = names or [s.name for s in all_scenarios()]
+    params = params or report_tuned()
+    jobs = [(n, params, law) for n in names]
+    workers = workers if workers is not None else min(2, len(jobs))
+    results = {}
+    if workers <= 1:
+        for job in jobs:
+            results[job[0]] = _run_safely(job)
+            if progress:
+                progress(job[0])
+    else:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            for job, res in zip(jobs, pool.map(_run_safely, jobs)):
+                results[job[0]] = res
+                if progress:
+                    progress(job[0])
+    return [results[n] for n in names]
+
+
+def comparison_records(results) -> list[dict]:
+    """``{scenario, quantity, unit, measured, simulated, report_simulated}`` in table units."""
+    out = []
+    for r in results:
+        s = r.scenario
+        for q, (unit, conv) in QUANTITIES.items():
+            measured = getattr(s.measured, q)
+            rec = {"scenario": r.name, "quantity": q, "unit": unit,
+                   "measured": round(conv(measured), 4),
+                   "simulated": None if q not in r.simulated else round(conv(r.simulated[q]), 4),
+                   "report_simulated": _report_value(s, q)}
+            out.append(rec)
+    return out
+
+
+def _report_value(s: Scenario, q: str):
+    rs = s.report_simulated
+    if rs is None:
+        return None
+    if q == "Q_total" and rs.Q_total is not None:
+        return round(to_lpm(rs.Q_total), 4)
+    return None
+
+
+def targets(results) -> dict:
+    """The issue's acceptance targets, each with its verdict and the numbers behind it."""
+    flow_ok, press_ok, margin_ok, settled_ok = [], [], [], []
+    for r in results:
+        if r.error:
+            continue
+        s = r.scenario
+        err_q = abs(to_lpm(r.simulated["Q_total"] - s.measured.Q_total))
+        flow_ok.append((r.name, err_q, err_q <= 1.0))
+        if s.kind == "solenoid_step":
+            worst = 0.0
+            ok = True
+            for q in ("Pf", "Pm", "Pb"):
+                m, sim = getattr(s.measured, q), r.simulated[q]
+                err = abs(sim - m)
+                ok &= err <= max(2e5, 0.10 * abs(m))
+                worst = max(worst, to_bar(err))
+            press_ok.append((r.name, worst, ok))
+        saturated = r.margins["pump_relief_flow"] < 0.02 * 16.3 / 60000
+        neutral = s.measured.Q_total == 0.0
+        if not saturated and not neutral:
+            pm = to_bar(r.margins["pump_margin"])
+            ms = to_bar(r.margins["main_spool_drop"])
+            margin_ok.append((r.name, pm, ms, abs(pm - 15) <= 2 and abs(ms - 5) <= 1))
+        settled_ok.append((r.name, r.settle_deviation, r.settled))
+    return {
+        "flow within 1 L/min (19 points)": (sum(o for *_, o in flow_ok), len(flow_ok), flow_ok),
+        "Pf, Pm, Pb within 2 bar or 10 % (>= 10 of 12 step tests)":
+            (sum(o for *_, o in press_ok), len(press_ok), press_ok),
+        "pump margin 15 +- 2 bar and main spool drop 5 +- 1 bar (unsaturated)":
+            (sum(o for *_, o in margin_ok), len(margin_ok), margin_ok),
+        "settled within 0.5 s": (sum(o for *_, o in settled_ok), len(settled_ok), settled_ok),
+    }
+
+
+def format_table(results) -> str:
+    """A plain-text table: measured vs simulated (and the report's simulation) per scenario."""
+    head = (f"{'scenario':9s} {'U [V]':>6s} | {'Q_total L/min':>19s} | {'Q_branch L/min':>15s} | "
+            f"{'Pf bar':>13s} | {'Pm bar':>13s} | {'Pb bar':>13s} | settled")
+    lines = [head, "-" * len(head)]
+    for r in results:
+        s = r.scenario
+        if r.error:
+            lines.append(f"{r.name:9s} {s.U_input:6.2f} | FAILED: {r.error[:90]}")
+            continue
+        cells = []
+        for q in QUANTITIES:
+            unit, conv = QUANTITIES[q]
+            width = 19 if q == "Q_total" else 15 if q == "Q_branch" else 13
+            text = f"{conv(getattr(s.measured, q)):6.2f} {conv(r.simulated[q]):6.2f}"
+            ref = _report_value(s, q)
+            if ref is not None:
+                text += f" ({ref:.2f})"
+            cells.append(f"{text:>{width}s}")
+        lines.append(f"{r.name:9s} {s.U_input:6.2f} | " + " | ".join(cells) +
+                     f" | {'yes' if r.settled else 'NO'}")
+    lines.append("each cell: measured simulated (report's simulation, where tabulated)")
+    return "\n".join(lines)
