@@ -1,8 +1,13 @@
 """Hydraulic components."""
 
+from .check_valve import CheckValve
+from .cylinder import Cylinder
 from .orifices import LaminarOrifice, Orifice
+from .solenoid import OnOffValve, PWMValve, TimedOnOffValve
 from .sources import FlowInput, FlowSource, Plug, PressureInput, PressureSource, Pump, Tank
-from .volumes import VolumeNode
+from .variable_orifice import VariableOrifice
+from .volumes import PistonChamber, VolumeNode
 
 __all__ = ["Tank", "PressureSource", "PressureInput", "FlowSource", "FlowInput", "Pump", "Plug",
-           "Orifice", "LaminarOrifice", "VolumeNode"]
+           "Orifice", "LaminarOrifice", "VariableOrifice", "CheckValve", "VolumeNode",
+           "PistonChamber", "Cylinder", "OnOffValve", "TimedOnOffValve", "PWMValve"]

@@ -1,0 +1,74 @@
+"""Translating masses and the mechanical ground.
+
+``SpoolMass`` (Newton's second law, report section 4.4.3, eq. 4.75)::
+
+    der(flange.x) = v
+    (m + m_lever) * der(v) = flange.f
+
+``flange.f`` is the sum of the forces the other components at the node exert on the spool in
++x (springs, friction, pressure forces, flow forces). The main spool of the PVG 32 weighs
+``m = 185 g`` (eq. 4.67) and is coupled to the hand lever, whose rotational inertia
+(62732 g mm^2 about its axis, 20 mm arm) adds an equivalent translating mass of
+``m_lever = 1.569 kg`` (eq. 4.82), 1.754 kg in total (the value in table 4.15).
+
+``Fixed`` (the mechanical ground)::
+
+    flange.x = x0
+
+It takes whatever force the node needs.
+"""
+
+from __future__ import annotations
+
+from pydantic import Field
+
+from pvgraph.component import Component, Mechanical, Params, Variable, der
+
+MAIN_SPOOL_MASS = 0.185          # [kg] report eq. 4.67
+LEVER_EQUIVALENT_MASS = 1.569    # [kg] report eq. 4.82
+
+__all__ = ["SpoolMass", "SpoolMassParams", "Fixed", "FixedParams", "MAIN_SPOOL_MASS",
+           "LEVER_EQUIVALENT_MASS"]
+
+
+class SpoolMassParams(Params):
+    m: float = Field(..., gt=0.0, le=1e4,
+                     description="Mass of the spool [kg] (PVG 32 main spool: 0.185 kg, report "
+                                 "eq. 4.67)")
+    m_lever: float = Field(0.0, ge=0.0, le=1e4,
+                           description="Equivalent translating mass of a coupled lever [kg] "
+                                       "(PVG 32 hand lever: 1.569 kg, report eq. 4.82)")
+    x0: float = Field(0.0, ge=-1.0, le=1.0, description="Initial position [m]")
+    v0: float = Field(0.0, ge=-100.0, le=100.0, description="Initial velocity [m/s]")
+
+
+class SpoolMass(Component):
+    """A translating spool: ``(m + m_lever) * der(v) = flange.f`` (report eq. 4.75)."""
+
+    Params = SpoolMassParams
+    ports = {"flange": Mechanical("the spool; all forces on it act through this node")}
+    variables = {"v": Variable("m/s", lambda p: p.v0, 0.1, "velocity of the spool")}
+
+    def starts(self, p):
+        return {"flange.x": p.x0}
+
+    def equations(self, v, p):
+        m = p.m + p.m_lever
+        v.observe("a", der(v.v), "m/s^2", "acceleration")
+        v.observe("E_kin", 0.5 * m * v.v * v.v, "J", "kinetic energy")
+        return [der(v.flange.x) - v.v,
+                m * der(v.v) - v.flange.f]
+
+
+class FixedParams(Params):
+    x0: float = Field(0.0, ge=-1.0, le=1.0, description="Position held [m]")
+
+
+class Fixed(Component):
+    """Mechanical ground: the flange is held at ``x0`` and takes any force."""
+
+    Params = FixedParams
+    ports = {"flange": Mechanical("the fixed point")}
+
+    def equations(self, v, p):
+        return [v.flange.x - p.x0]

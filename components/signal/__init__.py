@@ -1,0 +1,13 @@
+"""Signal components: causal sources and blocks, the LVDT sensor and the PVE controller.
+
+Signal ports carry one value ``u``/``y`` and are causal: an output (``SignalOut``) drives any
+number of inputs (``SignalIn``).
+"""
+
+from .blocks import FirstOrderLag, Gain, Saturation, Sum, Sum3
+from .lvdt import LVDT
+from .pve_controller import PVEController
+from .sources import Constant, Ramp, Sine, Step, TimeTable
+
+__all__ = ["Constant", "Step", "Ramp", "TimeTable", "Sine", "Gain", "Sum", "Sum3", "Saturation",
+           "FirstOrderLag", "LVDT", "PVEController"]

@@ -1,0 +1,147 @@
+"""Signal sources: functions of time on a causal output ``y``.
+
+::
+
+    Constant:   y = k
+    Step:       y = offset + height * after        after: 0 -> 1 at t = t_step (an event)
+    Ramp:       y = offset + height * clip((t - t_start) / duration, 0, 1)
+    TimeTable:  y = table(t)                       linear or pchip, held beyond the ends
+    Sine:       y = offset + amplitude * sin(2*pi*f*t + phase)
+
+``Step`` and ``Ramp`` switch a discrete mode at declared events (``t - t_step`` crossing zero
+upwards), so the solver stops exactly at the switching time and restarts from consistent values
+there instead of stepping across the discontinuity. The modes start as "before"; a switching time
+at or before ``t = 0`` is applied at trace time (the value is the one after the switch). A
+simulation that starts (``t_start > 0``) after a switching time does not see that switch.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from pvgraph import expr as E
+from pvgraph.component import Component, Params, SignalOut
+
+__all__ = ["Constant", "ConstantParams", "Step", "StepParams", "Ramp", "RampParams",
+           "TimeTable", "TimeTableParams", "Sine", "SineParams"]
+
+
+def _switch(name):
+    """An event action that sets the mode ``name`` to 1."""
+    def act(view):
+        view[name] = 1.0
+    act.__name__ = f"set_{name}"
+    return act
+
+
+class ConstantParams(Params):
+    k: float = Field(..., ge=-1e12, le=1e12, description="Output value [unit of y]")
+
+
+class Constant(Component):
+    """Constant signal ``y = k``."""
+
+    Params = ConstantParams
+    ports = {"y": SignalOut("the constant")}
+
+    def equations(self, v, p):
+        return [v.y - p.k]
+
+
+class StepParams(Params):
+    height: float = Field(1.0, ge=-1e12, le=1e12, description="Size of the step [unit of y]")
+    offset: float = Field(0.0, ge=-1e12, le=1e12, description="Value before the step [unit of y]")
+    t_step: float = Field(0.0, ge=0.0, le=1e9,
+                          description="Time of the step [s]; the value at t_step is the new one")
+
+
+class Step(Component):
+    """Step from ``offset`` to ``offset + height`` at ``t_step``, switched by an event."""
+
+    Params = StepParams
+    ports = {"y": SignalOut("the step signal")}
+    modes = {"after": 0.0}
+
+    def equations(self, v, p):
+        if p.t_step <= 0.0:
+            return [v.y - (p.offset + p.height)]
+        v.event("step", v.t - p.t_step, direction=1, action=_switch("after"))
+        return [v.y - (p.offset + p.height * E.where(v.mode("after") > 0.5, 1.0, 0.0))]
+
+
+class RampParams(Params):
+    height: float = Field(1.0, ge=-1e12, le=1e12, description="Total change [unit of y]")
+    duration: float = Field(..., gt=0.0, le=1e9, description="Duration of the ramp [s]")
+    offset: float = Field(0.0, ge=-1e12, le=1e12, description="Value before the ramp [unit of y]")
+    t_start: float = Field(0.0, ge=0.0, le=1e9, description="Start of the ramp [s]")
+
+
+class Ramp(Component):
+    """Ramp from ``offset`` to ``offset + height`` over ``[t_start, t_start + duration]``."""
+
+    Params = RampParams
+    ports = {"y": SignalOut("the ramp signal")}
+    modes = {"started": 0.0, "ended": 0.0}
+
+    def equations(self, v, p):
+        t_end = p.t_start + p.duration
+        rising = (v.t - p.t_start) / p.duration
+        if t_end <= 0.0:
+            fraction = E.const(1.0)
+        else:
+            v.event("end", v.t - t_end, direction=1, action=_switch("ended"))
+            fraction = E.where(v.mode("ended") > 0.5, 1.0, rising)
+            if p.t_start > 0.0:
+                v.event("start", v.t - p.t_start, direction=1,
+                        action=_switch("started"))
+                fraction = E.where(v.mode("started") > 0.5, fraction, 0.0)
+        return [v.y - (p.offset + p.height * fraction)]
+
+
+class TimeTableParams(Params):
+    t: tuple[float, ...] = Field(..., min_length=2, description="Times [s], strictly increasing")
+    y: tuple[float, ...] = Field(..., min_length=2, description="Values at those times "
+                                                                "[unit of y]")
+    method: Literal["linear", "pchip"] = Field(
+        "linear", description="Interpolation: linear, or pchip (monotone cubic, C1)")
+
+    @model_validator(mode="after")
+    def _table(self):
+        if len(self.t) != len(self.y):
+            raise ValueError(f"t has {len(self.t)} points but y has {len(self.y)}")
+        if any(b <= a for a, b in zip(self.t, self.t[1:])):
+            raise ValueError("t must be strictly increasing")
+        if not all(math.isfinite(x) for x in self.t + self.y):
+            raise ValueError("t and y must be finite")
+        return self
+
+
+class TimeTable(Component):
+    """Signal interpolated in a table of time, held constant beyond its ends."""
+
+    Params = TimeTableParams
+    ports = {"y": SignalOut("the interpolated signal")}
+
+    def equations(self, v, p):
+        table = E.Table(p.t, p.y, method=p.method, name=f"{self.path} y(t)")
+        return [v.y - E.interp(table, v.t)]
+
+
+class SineParams(Params):
+    amplitude: float = Field(1.0, ge=-1e12, le=1e12, description="Amplitude [unit of y]")
+    f: float = Field(..., gt=0.0, le=1e6, description="Frequency [Hz]")
+    phase: float = Field(0.0, ge=-1e3, le=1e3, description="Phase at t = 0 [rad]")
+    offset: float = Field(0.0, ge=-1e12, le=1e12, description="Mean value [unit of y]")
+
+
+class Sine(Component):
+    """Sine wave ``y = offset + amplitude * sin(2*pi*f*t + phase)``."""
+
+    Params = SineParams
+    ports = {"y": SignalOut("the sine wave")}
+
+    def equations(self, v, p):
+        return [v.y - (p.offset + p.amplitude * E.sin(2.0 * math.pi * p.f * v.t + p.phase))]

@@ -1,0 +1,548 @@
+"""Variable-order, variable-step BDF for F(t, y, y') = 0, following SUNDIALS IDA.
+
+The method is IDA's: backward differentiation formulas of order 1 to 5 in fixed-leading-
+coefficient form, with the solution history held as modified divided differences
+``phi[0..k]`` and the step-ratio coefficients psi, alpha, beta, sigma, gamma. Each step
+
+1. rescales the history for the new step size and predicts y and y' from it,
+2. solves the corrector F(t_n, y, y_pred' + cj (y - y_pred)) = 0 by modified Newton with
+   the iteration matrix J = dF/dy + cj dF/dy'; J and its LU factors are reused while
+   cj / cj_at_last_setup stays in [3/5, 5/3], and old factors are compensated by the
+   factor 2 / (1 + cj ratio),
+3. accepts the Newton iterate when ``ss * ||delta|| <= 0.33`` with the convergence-rate
+   estimate ss, fails on rate > 0.9 or after 4 iterations (retrying once with a fresh J),
+4. tests the local error ``ck * ||y - y_pred||`` in the weighted RMS norm with weights
+   1 / (rtol |y| + atol), algebraic components optionally suppressed,
+5. after success chooses order k-1, k or k+1 from the error estimates at those orders
+   and the step ratio in [1/2, 9/10] or 2; after failure cuts the step (0.25 for Newton
+   failures, 0.25..0.9 then 0.25 for error-test failures, order 1 after the third).
+
+During the first steps (phase 0) the order is raised and the step doubled until the
+order reaches its maximum, a step fails, or the error estimates call for a lower order.
+
+References
+----------
+.. [1] A. C. Hindmarsh, R. Serban, C. J. Balos, D. J. Gardner, D. R. Reynolds,
+   C. S. Woodward, "User Documentation for IDA", SUNDIALS, chapter "Mathematical
+   considerations".
+.. [2] K. E. Brenan, S. L. Campbell, L. R. Petzold, "Numerical Solution of Initial-Value
+   Problems in Differential-Algebraic Equations", SIAM, 1996 (DASSL, ch. 5).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pvgraph.errors import SolverError
+from pvgraph.solver.result import interpolate
+
+__all__ = ["IDAIntegrator", "initial_step", "wrms_norm", "error_weights",
+           "bdf_coefficients", "dominant_names"]
+
+MAX_ORDER = 5
+EPCON = 0.33                # Newton convergence test constant
+TOLDEL = 1e-8 * EPCON       # a first correction this small is converged outright
+MAX_NEWTON_ITERS = 4
+MAX_CONV_FAILS = 10         # Newton failures allowed within one step
+MAX_ERR_FAILS = 10          # error-test failures allowed within one step
+RATE_MAX = 0.9              # Newton diverges above this contraction rate
+XRATE = 0.25
+CJ_RATIO_LOW = (1.0 - XRATE) / (1.0 + XRATE)    # 3/5: outside [3/5, 5/3] refactorise
+CJ_RATIO_HIGH = 1.0 / CJ_RATIO_LOW
+SS_FIRST_STEP = 20.0        # rate-constant guess on the first step and after a new J
+SS_CJ_CHANGED = 100.0       # ... and after cj changed
+ETA_MAX = 2.0               # step growth after success
+ETA_MIN = 0.5               # smallest step reduction after success
+ETA_LOW = 0.9               # largest step reduction after success
+ETA_MIN_EF = 0.25           # smallest reduction after an error-test failure
+ETA_CF = 0.25               # reduction after a Newton failure
+H0_FRACTION = 1e-3          # first step as a fraction of the interval
+H0_YP_NORM = 0.5            # ... and such that ||h0 y'0|| <= 1/2
+UROUND = np.finfo(float).eps
+N_CULPRITS = 3              # variable names quoted in failure messages
+
+OK, NEWTON_FAIL, RESIDUAL_FAIL, SETUP_FAIL, ERROR_FAIL = range(5)
+HARMONIC = [sum(1.0 / j for j in range(1, k + 1)) for k in range(MAX_ORDER + 2)]
+
+
+def wrms_norm(v, w):
+    """Weighted root-mean-square norm sqrt(mean((v w)^2))."""
+    vw = v * w
+    return math.sqrt(np.dot(vw, vw) / vw.size)
+
+
+def error_weights(y, rtol, atol):
+    """IDA's error weights 1 / (rtol |y| + atol)."""
+    return 1.0 / (rtol * np.abs(y) + atol)
+
+
+def initial_step(yp, ewt_mask, t_span_length, max_step=None, first_step=None):
+    """IDA's first step: 0.001 of the interval, reduced so that ||h y'|| <= 1/2."""
+    if first_step is not None:
+        h = float(first_step)
+    else:
+        h = H0_FRACTION * t_span_length
+        ypnorm = wrms_norm(yp, ewt_mask)
+        if ypnorm > H0_YP_NORM / h:
+            h = H0_YP_NORM / ypnorm
+    if max_step is not None and h > max_step:
+        h = max_step
+    return h
+
+
+def bdf_coefficients(h, k, psi):
+    """Return IDA's step coefficients for step h at order k: (psi, sigma, beta, gamma, cj, ck).
+
+    ``beta`` is a column array (rows of the history scaled to phi*), ``gamma`` holds
+    gamma[1..k] for the y' predictor, cj is the leading coefficient and ck the
+    variable-step error constant.
+    """
+    psi = list(psi)
+    alpha = [1.0] * (k + 1)
+    beta = [1.0] * (k + 1)
+    sigma = [1.0] * (k + 1)
+    gamma = [0.0] * (k + 1)
+    temp1 = h
+    for i in range(1, k + 1):
+        temp2 = psi[i - 1]
+        psi[i - 1] = temp1
+        beta[i] = beta[i - 1] * temp1 / temp2
+        temp1 = temp2 + h
+        alpha[i] = h / temp1
+        sigma[i] = i * sigma[i - 1] * alpha[i]
+        gamma[i] = gamma[i - 1] + alpha[i - 1] / h
+    psi[k] = temp1
+    alphas = -HARMONIC[k]
+    alpha0 = -sum(alpha[:k])
+    ck = max(abs(alpha[k] + alphas - alpha0), alpha[k])
+    return (psi, sigma, np.array(beta)[:, None], np.array(gamma[1:]), -alphas / h, ck)
+
+
+def dominant_names(weighted, var_names, count=N_CULPRITS):
+    """Names of the entries with the largest |weighted| values (non-finite ones first)."""
+    weighted = np.asarray(weighted, dtype=float)
+    key = np.where(np.isfinite(weighted), np.abs(weighted), np.inf)
+    order = np.argsort(-key, kind="stable")[:count]
+    names = []
+    for i in order:
+        names.append(var_names[i] if var_names is not None else f"y[{i}]")
+    return names
+
+
+class IDAIntegrator:
+    """State of one IDA integration: history array, coefficients, weights and counters.
+
+    Parameters
+    ----------
+    fun : callable
+        Residual ``fun(t, y, yp) -> ndarray (n,)``.
+    n : int
+        Number of unknowns.
+    rtol : float
+        Relative tolerance.
+    atol : ndarray (n,)
+        Absolute tolerances.
+    error_mask : ndarray (n,) or None
+        1.0 for components in the local error test, 0.0 for suppressed (algebraic) ones.
+    jacobian : linalg.JacobianEvaluator
+        Source of the iteration matrix.
+    lu : linalg.LUSolver
+        Factorisation of the iteration matrix.
+    max_order : int
+        Highest BDF order, 1 to 5.
+    max_step : float or None
+        Largest step size.
+    var_names : list of str or None
+        Variable names for error messages.
+    """
+
+    def __init__(self, fun, n, rtol, atol, error_mask, jacobian, lu, max_order=MAX_ORDER,
+                 max_step=None, var_names=None):
+        if not 1 <= max_order <= MAX_ORDER:
+            raise ValueError(f"max_order must be in 1..{MAX_ORDER}, got {max_order}")
+        self.fun = fun
+        self.n = n
+        self.rtol = rtol
+        self.atol = atol
+        self.error_mask = error_mask
+        self.jacobian = jacobian
+        self.lu = lu
+        self.maxord = max_order
+        self.max_step = max_step
+        self.hmax_inv = 1.0 / max_step if max_step else 0.0
+        self.var_names = var_names
+        self.inv_n = 1.0 / n
+        self.inv_rtol = 1.0 / rtol
+        self.atol_over_rtol = np.asarray(atol, dtype=float) / rtol
+        self.phi = np.zeros((max_order + 2, n))
+        self.ee = np.zeros(n)
+        # counters over the whole integration
+        self.nst = 0
+        self.nre = 0
+        self.nni = 0
+        self.netf = 0
+        self.ncfn = 0
+        self.nsetups = 0
+        self._fail = None
+
+    # ------------------------------------------------------------------ set-up
+    def reinit(self, t, y, yp, t_bound, first_step=None):
+        """Start (or restart after an event) from a consistent (t, y, yp) at order 1."""
+        self.tn = float(t)
+        self.t_bound = float(t_bound)
+        self.yy = np.array(y, dtype=float)
+        self.yp = np.array(yp, dtype=float)
+        self.phi[:] = 0.0
+        self.phi[0] = self.yy
+        self.phi[1] = self.yp
+        self._set_weights(self.yy)
+        h = initial_step(self.yp, self.ewt_err, t_bound - t, self.max_step, first_step)
+        if (self.tn + h - t_bound) * h > 0.0:
+            h = (t_bound - self.tn) * (1.0 - 4.0 * UROUND)
+        if h <= 0.0:
+            raise SolverError(f"no room to step at t = {t:.9g} (end {t_bound:.9g})", t=t, h=h)
+        self.phi[1] *= h
+        self.hh = h
+        self.kk = 1
+        self.kused = 0
+        self.hused = 0.0
+        self.psi = [h] + [0.0] * (MAX_ORDER + 1)
+        self._coeffs = None
+        self.cj = 1.0 / h
+        self.cjlast = self.cj
+        self.cjold = self.cj
+        self.ck = 1.0
+        self.phase = 0
+        self.ns = 0
+        self.nst_restart = 0
+        self.ss = SS_FIRST_STEP
+        self.force_setup = True
+        self.t_old = self.tn
+
+    def _set_weights(self, y):
+        """Error weights for Newton (all components) and for the error test (masked)."""
+        w = np.abs(y)
+        w += self.atol_over_rtol
+        self.ewt = np.divide(self.inv_rtol, w, out=w)
+        self.ewt_err = self.ewt if self.error_mask is None else self.ewt * self.error_mask
+
+    # -------------------------------------------------------------------- step
+    def step(self):
+        """Take one successful step towards ``t_bound``; raise SolverError on failure."""
+        phi = self.phi
+        saved_t = self.tn
+        hh = self.hh
+        if (saved_t + hh - self.t_bound) * hh > 0.0:
+            hh_new = (self.t_bound - saved_t) * (1.0 - 4.0 * UROUND)
+            if self.nst_restart == 0:
+                phi[1] *= hh_new / hh
+                self.psi[0] = hh_new
+            hh = hh_new
+        kk = self.kk
+        ncf = nef = 0
+        psi_old = self.psi
+        while True:
+            if abs(hh) < 16.0 * UROUND * abs(saved_t):
+                self._raise("the step size fell below the minimum", saved_t, hh)
+            # --- coefficients (IDASetCoeffs)
+            if hh != self.hused or kk != self.kused:
+                self.ns = 0
+            ns = self.ns = min(self.ns + 1, self.kused + 2)
+            if kk + 1 >= ns:
+                coeffs = self._coeffs = bdf_coefficients(hh, kk, psi_old)
+            else:
+                coeffs = self._coeffs
+            psi, sigma, beta, gamma, cj, ck = coeffs
+            self.cjlast = self.cj
+            self.cj = cj
+            if ns <= kk:
+                phi[ns:kk + 1] *= beta[ns:kk + 1]
+            tn = saved_t + hh
+            # --- corrector and error test
+            status = self._newton(tn, kk, hh, cj, gamma)
+            if status == OK:
+                ew = self.ewt_err
+                ee = self.ee
+                v = ee * ew
+                enorm_k = math.sqrt(np.dot(v, v) * self.inv_n)
+                err_k = sigma[kk] * enorm_k
+                terr_k = (kk + 1) * err_k
+                knew = kk
+                err_km1 = 0.0
+                if kk > 2:
+                    # estimates at orders k-1 and k-2 in one pass: ee + phi[k] (+ phi[k-1])
+                    d = np.add.accumulate(phi[kk:kk - 2:-1], axis=0)
+                    d += ee
+                    d *= ew
+                    d *= d
+                    sq = np.add.reduce(d, axis=1)
+                    err_km1 = sigma[kk - 1] * math.sqrt(sq[0] * self.inv_n)
+                    terr_km1 = kk * err_km1
+                    terr_km2 = (kk - 1) * sigma[kk - 2] * math.sqrt(sq[1] * self.inv_n)
+                    if max(terr_km1, terr_km2) <= terr_k:
+                        knew = kk - 1
+                elif kk == 2:
+                    err_km1 = sigma[1] * wrms_norm(phi[2] + ee, ew)
+                    if 2.0 * err_km1 <= 0.5 * terr_k:
+                        knew = 1
+                if ck * enorm_k <= 1.0:
+                    break
+                status = ERROR_FAIL
+            # --- failure: restore the history and choose a smaller step (IDAHandleNFlag)
+            self.phase = 1
+            if ns <= kk:
+                phi[ns:kk + 1] /= beta[ns:kk + 1]
+            if status == ERROR_FAIL:
+                self._fail = (ERROR_FAIL, ee * ew)
+                nef += 1
+                self.netf += 1
+                if nef >= MAX_ERR_FAILS:
+                    self._raise(f"the local error test failed {nef} times in one step",
+                                saved_t, hh, ee * ew, "the weighted error estimate is dominated by")
+                if nef == 1:
+                    err_knew = err_km1 if knew == kk - 1 else err_k
+                    kk = knew
+                    rr = 0.9 * (2.0 * err_knew + 1e-4) ** (-1.0 / (kk + 1))
+                    rr = max(ETA_MIN_EF, min(ETA_LOW, rr))
+                elif nef == 2:
+                    kk = knew
+                    rr = ETA_MIN_EF
+                else:
+                    kk = 1
+                    rr = ETA_MIN_EF
+            else:
+                ncf += 1
+                self.ncfn += 1
+                if ncf >= MAX_CONV_FAILS:
+                    self._raise_newton(status, ncf, saved_t, hh)
+                rr = ETA_CF
+            hh *= rr
+            if self.nst_restart == 0:
+                psi_old = list(psi_old)
+                psi_old[0] = hh
+                phi[1] *= rr
+            self.kk = kk
+            self.hh = hh
+        # --- success (IDACompleteStep)
+        self.psi = psi
+        self.t_old = saved_t
+        self.tn = tn
+        self._complete_step(kk, hh, knew, err_k, err_km1)
+
+    def _newton(self, tn, kk, hh, cj, gamma):
+        """Modified Newton on the corrector; leaves y, y' and the correction ee in self."""
+        phi = self.phi
+        fun = self.fun
+        ewt = self.ewt
+        inv_n = 1.0 / self.n
+        k1 = kk + 1
+        call_setup = self.force_setup or self.nst_restart == 0
+        cjratio = cj / self.cjold
+        if cjratio < CJ_RATIO_LOW or cjratio > CJ_RATIO_HIGH:
+            call_setup = True
+        if cj != self.cjlast:
+            self.ss = SS_CJ_CHANGED
+        jcur = False
+        lu_solve = self.lu.solve
+        while True:
+            yy = np.add.reduce(phi[:k1], axis=0)
+            yp = np.dot(gamma, phi[1:k1])
+            r = fun(tn, yy, yp)
+            self.nre += 1
+            if call_setup:
+                if not math.isfinite(np.add.reduce(r)):
+                    self._fail = (RESIDUAL_FAIL, r)
+                    return RESIDUAL_FAIL
+                info = self._setup(tn, yy, yp, r, cj, hh)
+                jcur = True
+                cjratio = 1.0
+                if info != 0:
+                    return SETUP_FAIL
+            m = 0
+            oldnrm = 0.0
+            scale = 2.0 / (1.0 + cjratio) if cjratio != 1.0 else 0.0
+            while True:
+                delta = lu_solve(r)
+                if scale:
+                    delta *= scale
+                self.nni += 1
+                dw = delta * ewt
+                delnrm = math.sqrt(np.dot(dw, dw) * inv_n)
+                if not delnrm <= 1e300:
+                    self._fail = (RESIDUAL_FAIL, r)
+                    return RESIDUAL_FAIL
+                yy -= delta
+                yp -= cj * delta
+                if m == 0:
+                    ee = -delta
+                else:
+                    ee -= delta
+                if m == 0:
+                    oldnrm = delnrm
+                    if delnrm <= TOLDEL:
+                        break
+                else:
+                    rate = (delnrm / oldnrm) ** (1.0 / m)
+                    if rate > RATE_MAX:
+                        m = -1
+                        break
+                    self.ss = rate / (1.0 - rate)
+                if self.ss * delnrm <= EPCON:
+                    break
+                m += 1
+                if m >= MAX_NEWTON_ITERS:
+                    m = -1
+                    break
+                r = fun(tn, yy, yp)
+                self.nre += 1
+            if m >= 0:
+                self.yy = yy
+                self.yp = yp
+                self.ee = ee
+                return OK
+            self._fail = (NEWTON_FAIL, dw)
+            if jcur:
+                return NEWTON_FAIL
+            call_setup = True
+
+    def _setup(self, tn, yy, yp, r, cj, hh):
+        """Evaluate and factorise J = dF/dy + cj dF/dy'; return 0 or the singular column+1."""
+        self.nsetups += 1
+        self.cjold = cj
+        self.ss = SS_FIRST_STEP
+        self.force_setup = False
+        m = self.jacobian.iteration_matrix(tn, yy, yp, r, cj, self.ewt, hh)
+        info = self.lu.factor(m)
+        if info != 0:
+            self.force_setup = True
+            self._fail = (SETUP_FAIL, info)
+        return info
+
+    def _complete_step(self, kk, hh, knew, err_k, err_km1):
+        """Order and step selection after a successful step, then update the history."""
+        phi = self.phi
+        ee = self.ee
+        self.nst += 1
+        self.nst_restart += 1
+        kdiff = kk - self.kused
+        self.kused = kk
+        self.hused = hh
+        maxord = self.maxord
+        if knew == kk - 1 or kk == maxord:
+            self.phase = 1
+        if self.phase == 0:
+            if self.nst_restart > 1:
+                kk += 1
+                hnew = ETA_MAX * hh
+                tmp = abs(hnew) * self.hmax_inv
+                if tmp > 1.0:
+                    hnew /= tmp
+                hh = hnew
+        else:
+            # choose among orders k-1, k, k+1
+            if knew == kk - 1:
+                action = -1
+            elif kk == maxord or kk + 1 >= self.ns or kdiff == 1:
+                action = 0
+            else:
+                err_kp1 = wrms_norm(ee - phi[kk + 1], self.ewt_err) / (kk + 2)
+                terr_k = (kk + 1) * err_k
+                terr_kp1 = (kk + 2) * err_kp1
+                if kk == 1:
+                    action = 0 if terr_kp1 >= 0.5 * terr_k else 1
+                else:
+                    terr_km1 = kk * err_km1
+                    if terr_km1 <= min(terr_k, terr_kp1):
+                        action = -1
+                    elif terr_kp1 >= terr_k:
+                        action = 0
+                    else:
+                        action = 1
+            if action == 1:
+                kk += 1
+                err_knew = err_kp1
+            elif action == -1:
+                kk -= 1
+                err_knew = err_km1
+            else:
+                err_knew = err_k
+            rr = (2.0 * err_knew + 1e-4) ** (-1.0 / (kk + 1))
+            if rr >= ETA_MAX:
+                hnew = ETA_MAX * hh
+                tmp = abs(hnew) * self.hmax_inv
+                if tmp > 1.0:
+                    hnew /= tmp
+                hh = hnew
+            elif rr <= 1.0:
+                hh *= max(ETA_MIN, min(ETA_LOW, rr))
+        self.kk = kk
+        self.hh = hh
+        kused = self.kused
+        if kused < maxord:
+            phi[kused + 1] = ee
+        phi[kused] += ee
+        if kused > 1:
+            phi[:kused + 1] = np.add.accumulate(phi[kused::-1], axis=0)[::-1]
+        else:
+            phi[0] += phi[1]
+        self._set_weights(phi[0])
+
+    # ------------------------------------------------------------ dense output
+    def interpolate(self, t):
+        """(y, y') at t in the last step, from the BDF interpolating polynomial."""
+        return interpolate(t, self.tn, self.kused, self.psi, self.phi)
+
+    # ------------------------------------------------------------------ errors
+    def _raise(self, what, t, h, weighted=None, lead="culprits:"):
+        culprits = []
+        text = f"IDA failed at t = {t:.9g} trying step h = {h:.3g}: {what}"
+        if weighted is not None:
+            culprits = dominant_names(weighted, self.var_names)
+            text += f"; {lead} {', '.join(repr(c) for c in culprits)}"
+        elif self._fail is not None:
+            return self._raise_newton(self._fail[0], 0, t, h, what)
+        else:
+            culprits = dominant_names(self.ee * self.ewt_err, self.var_names)
+            text += ("; the step size is controlled by the local error of "
+                     + ", ".join(map(repr, culprits)))
+        raise SolverError(text + ".", t=t, h=h, culprits=culprits)
+
+    def _raise_newton(self, status, ncf, t, h, what=None):
+        kind, data = self._fail if self._fail is not None else (status, None)
+        head = f"IDA failed at t = {t:.9g} trying step h = {h:.3g}: "
+        if what is None:
+            what = f"{ncf} corrector failures in one step"
+        if kind == SETUP_FAIL:
+            col = int(data) - 1
+            if col >= 0:
+                name = self.var_names[col] if self.var_names is not None else f"y[{col}]"
+                culprits = [name]
+                msg = (f"{what}; the iteration matrix dF/dy + cj dF/dy' is singular in the "
+                       f"column of {name!r} (no equation determines it, or the DAE has "
+                       "index > 1)")
+            else:
+                culprits = []
+                msg = f"{what}; the iteration matrix dF/dy + cj dF/dy' is singular"
+        elif kind == RESIDUAL_FAIL:
+            r = np.asarray(data)
+            bad = np.flatnonzero(~np.isfinite(r))
+            culprits = dominant_names(np.where(np.isfinite(r), 0.0, np.inf), self.var_names,
+                                      count=max(1, min(N_CULPRITS, bad.size)))
+            nonfinite_y = np.flatnonzero(~np.isfinite(self.yy))
+            msg = (f"{what}; the residual is not finite in equation(s) "
+                   f"{bad[:N_CULPRITS].tolist()} (rows of {', '.join(map(repr, culprits))})")
+            if nonfinite_y.size:
+                msg += "; non-finite variables: " + ", ".join(
+                    repr(n) for n in dominant_names(np.where(np.isfinite(self.yy), 0, np.inf),
+                                                    self.var_names, min(3, nonfinite_y.size)))
+        elif kind == ERROR_FAIL:
+            culprits = dominant_names(data, self.var_names)
+            msg = (f"{what}; the weighted local error estimate is dominated by "
+                   f"{', '.join(map(repr, culprits))}")
+        else:
+            culprits = dominant_names(data, self.var_names)
+            msg = (f"{what}; the Newton iteration did not converge, its correction is "
+                   f"dominated by {', '.join(map(repr, culprits))}")
+        raise SolverError(head + msg + ".", t=t, h=h, culprits=culprits)

@@ -1,0 +1,332 @@
+"""``solve_dae``: integrate F(t, y, y') = 0 with the IDA-style BDF method of ``ida.py``.
+
+The driver owns everything around the stepping: argument checks, consistent initial
+conditions, output at internal steps or at ``t_eval`` (interpolated), events with their
+location, recording, terminal stops and mode-switching actions (followed by a new
+consistent initialisation and a restart at order 1), dense output and statistics.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pvgraph.errors import InitializationError, SolverError
+from pvgraph.solver.events import EventTracker, normalize_events
+from pvgraph.solver.ida import UROUND, IDAIntegrator, initial_step
+from pvgraph.solver.initial import (
+    check_consistency,
+    consistent_initial_conditions,
+    derivative_free_columns,
+)
+from pvgraph.solver.linalg import JacobianEvaluator, LUSolver
+from pvgraph.solver.result import DAEResult, DenseOutput, EventRecord
+
+__all__ = ["solve_dae"]
+
+END_FUZZ = 100.0            # reaching t_end within END_FUZZ * eps * (|t| + |h|) is reaching it
+
+
+class _Counted:
+    """Residual wrapper that counts calls and guarantees a float ndarray result."""
+
+    def __init__(self, fun, convert):
+        self.fun = fun
+        self.convert = convert
+        self.calls = 0
+
+    def __call__(self, t, y, yp):
+        self.calls += 1
+        r = self.fun(t, y, yp)
+        return np.asarray(r, dtype=float) if self.convert else r
+
+
+def _as_mask(algebraic, n):
+    """Boolean mask of algebraic components from a mask or an index list."""
+    if algebraic is None:
+        return np.zeros(n, dtype=bool)
+    a = np.asarray(algebraic)
+    if a.dtype == bool:
+        if a.shape != (n,):
+            raise ValueError(f"algebraic mask has shape {a.shape}, expected ({n},)")
+        return a.copy()
+    mask = np.zeros(n, dtype=bool)
+    if a.size:
+        idx = a.astype(int).ravel()
+        if idx.min() < -n or idx.max() >= n:
+            raise ValueError(f"algebraic indices {idx.tolist()} out of range for n = {n}")
+        mask[idx] = True
+    return mask
+
+
+def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None, jac=None,
+              jac_sparsity=None, events=None, t_eval=None, max_step=None, first_step=None,
+              calc_initial="algebraic", max_order=5, max_steps=100_000, var_names=None,
+              dense_output=False):
+    """Solve the implicit DAE F(t, y, y') = 0 of index at most one.
+
+    Parameters
+    ----------
+    residual : callable
+        ``residual(t, y, yp) -> ndarray (n,)``.
+    t_span : (float, float)
+        Start and end time, ``t_span[1] > t_span[0]``.
+    y0, yp0 : array_like (n,)
+        Initial values and derivatives (corrected according to ``calc_initial``).
+    rtol : float
+        Relative tolerance.
+    atol : float or array_like (n,)
+        Absolute tolerance(s), positive.
+    algebraic : array_like of bool (n,) or of int, optional
+        Algebraic variables (their derivative does not appear in F). They are solved for by
+        ``calc_initial="algebraic"`` and left out of the local error test (IDA's
+        suppressalg). If None and the initial calculation needs them, the variables whose
+        derivative has an identically zero column in dF/dy' at t0 are taken as algebraic
+        for the initialisation only.
+    jac : callable, optional
+        ``jac(t, y, yp, c) -> dF/dy + c dF/dy'`` as ndarray or scipy.sparse matrix. Finite
+        differences when None.
+    jac_sparsity : sparse matrix or array, optional
+        Pattern of ``dF/dy + c dF/dy'``; finite differences then perturb groups of
+        structurally independent columns together, and systems with n >= 100 use SuperLU.
+    events : list of Event or scipy-style callables, optional
+        Zero crossings to locate; see ``Event``.
+    t_eval : array_like, optional
+        Sorted output times inside t_span, interpolated from the BDF history. By default
+        every internal step (and both sides of every event with an action) is output.
+    max_step : float, optional
+        Largest step size.
+    first_step : float, optional
+        First step size (otherwise IDA's estimate).
+    calc_initial : {"algebraic", "all", None}
+        ``"algebraic"``: solve algebraic y and all y' for the given differential y
+        (IDA_YA_YDP_INIT); ``"all"``: solve all y for the given y' (IDA_Y_INIT); None: use
+        the given values after checking they are consistent to within the tolerance.
+    max_order : int
+        Highest BDF order (1 to 5).
+    max_steps : int
+        Most steps allowed.
+    var_names : list of str, optional
+        Variable names for error messages.
+    dense_output : bool
+        Provide ``result.sol(t)``.
+
+    Returns
+    -------
+    DAEResult
+
+    Raises
+    ------
+    InitializationError
+        No consistent initial values were found, or the given ones are inconsistent.
+    SolverError
+        The integration failed; the message gives t, h and the dominating variables.
+
+    References
+    ----------
+    .. [1] A. C. Hindmarsh et al., "User Documentation for IDA", SUNDIALS.
+    """
+    t0, t_end = float(t_span[0]), float(t_span[1])
+    if not (np.isfinite(t0) and np.isfinite(t_end) and t_end > t0):
+        raise ValueError(f"t_span must be finite and increasing, got {t_span!r}")
+    y0 = np.array(y0, dtype=float).ravel()
+    yp0 = np.array(yp0, dtype=float).ravel()
+    n = y0.size
+    if yp0.size != n:
+        raise ValueError(f"y0 has {n} entries but yp0 has {yp0.size}")
+    if not (np.all(np.isfinite(y0)) and np.all(np.isfinite(yp0))):
+        raise InitializationError("y0 and yp0 must be finite")
+    rtol = float(rtol)
+    if not rtol > 0.0:
+        raise ValueError(f"rtol must be positive, got {rtol}")
+    atol = np.broadcast_to(np.asarray(atol, dtype=float), (n,)).copy()
+    if not np.all(atol > 0.0):
+        raise ValueError("atol must be positive for every variable")
+    if var_names is not None:
+        var_names = [str(v) for v in var_names]
+        if len(var_names) != n:
+            raise ValueError(f"var_names has {len(var_names)} names for {n} variables")
+    if calc_initial not in ("algebraic", "all", None):
+        raise ValueError(f"calc_initial must be 'algebraic', 'all' or None, got {calc_initial!r}")
+    alg_mask = _as_mask(algebraic, n)
+    event_list = normalize_events(events)
+    if t_eval is not None:
+        t_eval = np.asarray(t_eval, dtype=float).ravel()
+        if np.any(np.diff(t_eval) < 0.0):
+            raise ValueError("t_eval must be sorted")
+        if t_eval.size and (t_eval[0] < t0 or t_eval[-1] > t_end):
+            raise ValueError("t_eval must lie within t_span")
+    if max_step is not None and not max_step > 0.0:
+        raise ValueError(f"max_step must be positive, got {max_step}")
+
+    with np.errstate(all="ignore"):
+        return _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask,
+                          algebraic is not None, jac, jac_sparsity, event_list, t_eval,
+                          max_step, first_step, calc_initial, int(max_order), int(max_steps),
+                          var_names, dense_output)
+
+
+def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, jac,
+               jac_sparsity, event_list, t_eval, max_step, first_step, calc_initial,
+               max_order, max_steps, var_names, dense_output):
+    """The integration loop behind ``solve_dae`` (arguments already checked)."""
+    n = y0.size
+    r0 = residual(t0, y0, yp0)
+    convert = not (isinstance(r0, np.ndarray) and r0.dtype == np.float64)
+    r0 = np.asarray(r0, dtype=float)
+    if r0.shape != (n,):
+        raise ValueError(f"residual returned shape {r0.shape}, expected ({n},)")
+    counted = _Counted(residual, convert)
+    counted.calls = 1
+    if convert:
+        def fun(t, y, yp):
+            return np.asarray(residual(t, y, yp), dtype=float)
+    else:
+        fun = residual
+    jacobian = JacobianEvaluator(fun, n, jac, jac_sparsity)
+    lu = LUSolver()
+    error_mask = (~alg_mask).astype(float) if alg_given and alg_mask.any() else None
+
+    def initialise(t, y, yp, mode):
+        mask = alg_mask
+        if mode == "algebraic" and not alg_given:
+            r = counted(t, y, yp)
+            mask = np.zeros(n, dtype=bool)
+            mask[derivative_free_columns(jacobian, t, y, yp, r)] = True
+        return consistent_initial_conditions(counted, t, y, yp, mode, mask, jacobian, rtol,
+                                             atol, t_end - t0, var_names)
+
+    if calc_initial is None:
+        ewt = 1.0 / (rtol * np.abs(y0) + atol)
+        h0 = initial_step(yp0, ewt if error_mask is None else ewt * error_mask,
+                          t_end - t0, max_step, first_step)
+        if (t0 + h0 - t_end) > 0.0:
+            h0 = t_end - t0
+        check_consistency(counted, t0, y0, yp0, jacobian, lu, h0, rtol, atol, var_names)
+        y, yp = y0.copy(), yp0.copy()
+    else:
+        y, yp = initialise(t0, y0, yp0, calc_initial)
+
+    integ = IDAIntegrator(fun, n, rtol, atol, error_mask, jacobian, lu, max_order, max_step,
+                          var_names)
+    integ.reinit(t0, y, yp, t_end, first_step)
+
+    ts, ys, yps = [], [], []
+    i_eval = 0
+    if t_eval is None:
+        ts.append(t0)
+        ys.append(y.copy())
+        yps.append(yp.copy())
+    else:
+        while i_eval < t_eval.size and t_eval[i_eval] <= t0:
+            ts.append(t0)
+            ys.append(y.copy())
+            yps.append(yp.copy())
+            i_eval += 1
+
+    tracker = EventTracker(event_list) if event_list else None
+    if tracker is not None:
+        tracker.reset(t0, y, yp)
+    records = []
+    dense = DenseOutput(n) if dense_output else None
+    message = "The solver successfully reached the end of the integration interval."
+    restart_mode = calc_initial if calc_initial is not None else "algebraic"
+    steps_at_start = integ.nst
+
+    while True:
+        if integ.nst - steps_at_start >= max_steps:
+            raise SolverError(
+                f"IDA reached max_steps = {max_steps} at t = {integ.tn:.9g} (h = "
+                f"{integ.hh:.3g}) before t_end = {t_end:.9g}; raise max_steps or check "
+                "the model for fast oscillations or chattering events.",
+                t=integ.tn, h=integ.hh)
+        integ.step()
+        t_old, tn = integ.t_old, integ.tn
+        if dense is not None:
+            dense.append(t_old, tn, integ.kused, integ.psi, integ.phi)
+        hit = None
+        if tracker is not None:
+            g_new = tracker.evaluate(tn, integ.yy, integ.yp)
+            for te, i, direction in tracker.crossings(t_old, tn, g_new, integ.interpolate):
+                ev = event_list[i]
+                ye, ype = integ.interpolate(te)
+                records.append(EventRecord(te, i, ev.name, ye, ype, direction))
+                if ev.terminal or ev.action is not None:
+                    hit = (te, i, ev, ye, ype)
+                    break
+            tracker.g = g_new
+        t_upto = tn if hit is None else hit[0]
+        if t_eval is not None:
+            while i_eval < t_eval.size and t_eval[i_eval] <= t_upto:
+                yv, ypv = integ.interpolate(t_eval[i_eval])
+                ts.append(t_eval[i_eval])
+                ys.append(yv)
+                yps.append(ypv)
+                i_eval += 1
+        elif hit is None:
+            ts.append(tn)
+            ys.append(integ.yy)
+            yps.append(integ.yp)
+        if hit is not None:
+            te, i, ev, ye, ype = hit
+            if t_eval is None:
+                ts.append(te)
+                ys.append(ye)
+                yps.append(ype)
+            if ev.terminal:
+                message = f"A terminal event ({ev.name!r}) occurred at t = {te:.9g}."
+                break
+            out = ev.action(te, ye.copy(), ype.copy())
+            if out is not None:
+                ye = np.array(out[0], dtype=float).ravel()
+                ype = np.array(out[1], dtype=float).ravel()
+                if ye.shape != (n,) or ype.shape != (n,):
+                    raise ValueError(f"the action of event {ev.name!r} returned arrays of "
+                                     f"shapes {ye.shape}, {ype.shape}; expected ({n},)")
+            try:
+                ye, ype = initialise(te, ye, ype, restart_mode)
+            except InitializationError as exc:
+                raise InitializationError(
+                    f"after event {ev.name!r} at t = {te:.9g}: {exc}") from exc
+            integ.reinit(te, ye, ype, t_end)
+            tracker.reset(te, ye, ype, unknown=[i])
+            if t_eval is None:
+                ts.append(te)
+                ys.append(ye.copy())
+                yps.append(ype.copy())
+            continue
+        if t_end - tn <= END_FUZZ * UROUND * (abs(tn) + abs(integ.hused)):
+            break
+
+    if t_eval is not None and hit is None:
+        while i_eval < t_eval.size:
+            yv, ypv = integ.interpolate(t_eval[i_eval])
+            ts.append(t_eval[i_eval])
+            ys.append(yv)
+            yps.append(ypv)
+            i_eval += 1
+    elif t_eval is None and hit is None:
+        ts[-1] = t_end
+        ys[-1], yps[-1] = integ.interpolate(t_end)
+
+    nre = counted.calls + integ.nre + jacobian.nfev
+    stats = {
+        "nsteps": integ.nst,
+        "nre": nre,
+        "nje": jacobian.nje,
+        "nlu": lu.nlu,
+        "netf": integ.netf,
+        "ncfn": integ.ncfn,
+        "nni": integ.nni,
+        "nroot": tracker.nroot if tracker is not None else 0,
+    }
+    return DAEResult(
+        t=np.asarray(ts, dtype=float),
+        y=np.vstack(ys) if ys else np.empty((0, n)),
+        yp=np.vstack(yps) if yps else np.empty((0, n)),
+        events=records,
+        t_events=np.array([rec.t for rec in records], dtype=float),
+        stats=stats,
+        success=True,
+        message=message,
+        sol=dense,
+    )

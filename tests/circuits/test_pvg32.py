@@ -1,0 +1,116 @@
+"""The PVG 32 model: the circuits compile, each module behaves as the report describes, and the
+rig reproduces the lab measurements (report sections 4.2-4.7, appendix B.7)."""
+
+import numpy as np
+import pytest
+
+from circuits.pvg32.modules import build_pvb, build_pvg32, build_pvp
+from circuits.pvg32.parameters import report_tuned
+from circuits.rig import build_rig, laminar_load, turbulent_load
+from circuits.validation import run_scenario, targets, validate
+from components.hydraulic import FlowSource, LaminarOrifice, Plug, PressureSource, Tank
+from components.mechanical import Fixed
+from pvgraph import Circuit
+from pvgraph.simulate import simulate
+from pvgraph.units import bar, lpm, lpm_per_bar, mm, to_bar, to_lpm
+
+P = report_tuned()
+
+
+def test_rig_compiles_balanced_and_index_one():
+    system = build_rig(P).compile()
+    assert system.n == len(system.equations)
+    assert 20 <= int(system.differential.sum()) <= 40
+    # the residual is finite at the start values
+    assert np.all(np.isfinite(system.residual(0.0, system.y0, system.yp0)))
+
+
+@pytest.mark.parametrize("law", ["laminar", "turbulent"])
+def test_loads_are_swappable_without_touching_the_valve(law):
+    make = laminar_load if law == "laminar" else turbulent_load
+    system = build_rig(P, load=make(P, L1="large", L3="large")).compile()
+    assert "load.L3.q" in system.observed
+
+
+def test_pvp_relieves_about_13_bar_above_the_load_sense_pressure():
+    """Report 2.2 / 4.7.3: the PVP holds the pump about 15 bar (nominal) above LS; with the
+    report's own spring (300 N on 2.54 cm^2, opening at 2 mm) the margin is 13-14 bar."""
+    for p_ls in (bar(20), bar(80)):
+        c = Circuit("pvp_bench")
+        pvp = c.add("pvp", build_pvp(P))
+        c.connect(c.add("pump", FlowSource(Q=lpm(16.3))).port, pvp.P)
+        c.connect(c.add("ls", PressureSource(p0=p_ls)).port, pvp.LS)
+        c.connect(c.add("tank", Tank()).port, pvp.T)
+        sol = simulate(c, 8.0, rtol=1e-6, t_eval=[7.0, 8.0])  # 35000 N s/m: slow
+        margin = to_bar(sol["pvp.Vp.port.p"] - p_ls)
+        assert 12.5 < margin[-1] < 15.0
+        assert abs(margin[-1] - margin[0]) < 0.05  # settled
+        # all the pump flow is relieved to tank
+        assert to_lpm(sol.final("pvp.A3.q")) == pytest.approx(16.3, abs=0.05)
+
+
+def pvb_bench(p_supply, x_m):
+    c = Circuit("pvb_bench")
+    pvb = c.add("pvb", build_pvb(P))
+    c.connect(c.add("supply", PressureSource(p0=p_supply)).port, pvb.P)
+    c.connect(c.add("spool_drive", Fixed(x0=x_m)).flange, pvb.spool)
+    load = c.add("load", LaminarOrifice(K=lpm_per_bar(0.3)))
+    tank = c.add("tank", Tank())
+    c.connect(pvb.B, load.a)
+    c.connect(load.b, pvb.A)
+    c.connect(pvb.T, tank.port)
+    c.connect(pvb.LS, c.add("ls_plug", Plug()).port)
+    return c
+
+
+def test_compensator_holds_the_main_spool_drop_independent_of_supply_pressure():
+    """Report 4.3: the compensator keeps about 5 bar over the main spool, so the flow set by the
+    spool opening does not depend on the supply pressure."""
+    flows, drops = [], []
+    for p_supply in (bar(60), bar(120)):
+        sol = simulate(pvb_bench(p_supply, -mm(3.5)), 4.0, rtol=1e-6, t_eval=[4.0])
+        drops.append(to_bar(sol.final("pvb.PK.port.p") - sol.final("load.a.p")))
+        flows.append(to_lpm(sol.final("load.q")))
+    for d in drops:
+        assert 4.0 < d < 6.0
+    assert flows[0] == pytest.approx(flows[1], rel=0.03)
+    assert flows[0] > 5.0
+
+
+def test_main_spool_steps_to_3_5_mm_and_settles():
+    """Report 4.9 / figure 4.62: a step of the set point to 3.5 mm; the spool follows and settles
+    (the LVDT under-reads by 0.945 and the loop is proportional, so the final travel is within
+    a few per cent of the set point)."""
+    u = 11.5 * (-mm(3.5) + 0.014) / 0.028  # the input voltage that commands -3.5 mm
+    system = build_rig(P, U_input=u).compile()
+    t = np.linspace(0.0, 1.0, 101)
+    sol = simulate(system, 1.0, rtol=1e-6, t_eval=t)
+    x = sol["pvg.pvb.main_spool.flange.x"]
+    assert x[-1] == pytest.approx(-mm(3.5), rel=0.05)
+    late = t >= 0.5
+    assert np.ptp(x[late]) < mm(0.05)  # no sustained oscillation
+    assert abs(x[t <= 0.3][-1] - x[-1]) < mm(0.2)  # there within 0.3 s
+
+
+@pytest.mark.parametrize("name", ["test-8", "test-9", "sweep-5"])
+def test_rig_matches_lab_data(name):
+    """A few scenarios in the default suite; all 19 run under -m slow."""
+    r = run_scenario(name, P)
+    s = r.scenario
+    assert abs(to_lpm(r.simulated["Q_total"] - s.measured.Q_total)) <= 1.0  # flow meter +-1
+    for q in ("Pf", "Pm", "Pb"):
+        m, sim = getattr(s.measured, q), r.simulated[q]
+        assert abs(sim - m) <= max(bar(2.0), 0.10 * abs(m)), q
+    assert 11.0 < to_bar(r.margins["pump_margin"]) < 17.0
+    assert 4.0 < to_bar(r.margins["main_spool_drop"]) < 6.0
+
+
+@pytest.mark.slow
+def test_all_19_scenarios_meet_the_flow_and_margin_targets():
+    results = validate(P)
+    assert not [r.name for r in results if r.error]
+    t = targets(results)
+    ok, total, _ = t["flow within 1 L/min (19 points)"]
+    assert ok == total == 19
+    ok, total, _ = t["pump margin 15 +- 2 bar and main spool drop 5 +- 1 bar (unsaturated)"]
+    assert ok == total

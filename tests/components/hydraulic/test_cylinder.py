@@ -1,0 +1,90 @@
+"""Cylinder: two piston chambers on one rod (report A.5 applied per chamber, eqs. 4.93-4.94)."""
+
+import numpy as np
+import pytest
+
+from components.hydraulic import Cylinder, FlowSource, Plug, PressureSource, Tank
+from hydraulic_helpers import (MassDamper, VelocityDrive, jacobian_fd_error, requires_solver,
+                               value, vector)
+from pvgraph.circuit import Circuit
+from pvgraph.errors import ParameterError
+from pvgraph.simulate import simulate
+from pvgraph.units import bar, cm3, lpm
+
+BETA = 7e8
+GEOMETRY = dict(A_A=1e-3, A_rod=4e-4, stroke=0.2, V_dead_A=cm3(20), V_dead_B=cm3(20))
+A_A, A_B = 1e-3, 6e-4
+
+
+def _driven(x0, v, port_A, port_B, **kw):
+    c = Circuit("bench")
+    c.add("drive", VelocityDrive(x0=x0, v=v))
+    c.add("dut", Cylinder(**{**GEOMETRY, **kw}))
+    c.add("src_A", port_A)
+    c.add("src_B", port_B)
+    c.connect("drive.flange", "dut.flange")
+    c.connect("src_A.port", "dut.A")
+    c.connect("src_B.port", "dut.B")
+    return c
+
+
+def test_port_flows_are_the_volume_change_rates_and_force_balances_pressures():
+    x, v, p_A, p_B = 0.05, 0.1, bar(50), bar(5)
+    system = _driven(x, v, PressureSource(p0=p_A), PressureSource(p0=p_B)).compile()
+    values = {"drive.flange.x": x, "dut.A.q": A_A * v, "dut.B.q": -A_B * v}
+    y = vector(system, values)
+    yp = vector(system, {"drive.flange.x": v, "dut.A.q": 0.0, "dut.B.q": 0.0})
+    assert np.max(np.abs(system.residual(0.0, y, yp))) < 1e-8 * A_A * v
+    assert value(system, y, "dut.flange.f") == pytest.approx(-(A_A * p_A - A_B * p_B))
+
+
+@pytest.mark.parametrize("kwargs, field", [
+    (dict(GEOMETRY, A_rod=1e-3), "A_rod"),
+    (dict(GEOMETRY, stroke=0.0), "stroke"),
+    (dict(GEOMETRY, V_dead_A=-1.0), "V_dead_A"),
+    (dict(GEOMETRY, K_leak=-1.0), "K_leak"),
+])
+def test_bad_parameters_name_the_field(kwargs, field):
+    with pytest.raises(ParameterError, match=field):
+        Cylinder(**kwargs)
+
+
+@pytest.mark.parametrize("K_leak", [0.0, 1e-12])
+def test_bench_is_well_posed_and_jacobian_exact(K_leak):
+    system = _driven(0.05, 0.1, Plug(), Plug(), K_leak=K_leak, p0_A=bar(10),
+                     p0_B=bar(10)).compile()
+    assert system.differential.sum() == 3
+    assert jacobian_fd_error(system) < 1e-6
+
+
+@requires_solver
+def test_closed_cylinder_driven_by_a_position_ramp():
+    """Both ports plugged: p = p0 + beta ln(V(0) / V(t)) in each chamber."""
+    x0, v, p0, T = 0.1, 0.01, bar(10), 0.1
+    t = np.linspace(0.0, T, 6)
+    sol = simulate(_driven(x0, v, Plug(), Plug(), p0_A=p0, p0_B=p0), T, rtol=1e-8, t_eval=t)
+    x = x0 + v * t
+    V_A = GEOMETRY["V_dead_A"] + A_A * x
+    V_B = GEOMETRY["V_dead_B"] + A_B * (GEOMETRY["stroke"] - x)
+    np.testing.assert_allclose(sol["dut.A.p"], p0 + BETA * np.log(V_A[0] / V_A), rtol=1e-5)
+    np.testing.assert_allclose(sol["dut.B.p"], p0 + BETA * np.log(V_B[0] / V_B), rtol=1e-5)
+
+
+@requires_solver
+def test_pump_extends_the_rod_against_a_damper():
+    """Steady state: v = Q / A_A, A_A p_A = b v (rod side to tank), B returns A_B v."""
+    Q, b, m = lpm(6), 2e5, 10.0
+    c = Circuit("extend")
+    c.add("pump", FlowSource(Q=Q))
+    c.add("dut", Cylinder(**GEOMETRY))
+    c.add("tank", Tank())
+    c.add("load", MassDamper(m=m, b=b, x0=0.02))
+    c.connect("pump.port", "dut.A")
+    c.connect("dut.B", "tank.port")
+    c.connect("dut.flange", "load.flange")
+    sol = simulate(c, 0.5, rtol=1e-8, t_eval=[0.0, 0.5])
+    v = Q / A_A
+    assert sol.final("load.v") == pytest.approx(v, rel=1e-5)
+    assert sol.final("dut.A.p") == pytest.approx(b * v / A_A, rel=1e-5)
+    assert sol.final("dut.B.q") == pytest.approx(-A_B * v, rel=1e-5)
+    assert sol.final("dut.F") == pytest.approx(b * v, rel=1e-5)

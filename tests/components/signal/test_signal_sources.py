@@ -1,0 +1,93 @@
+"""Signal sources: values in time, the step's event at exactly its time, validation."""
+
+import numpy as np
+import pytest
+
+from components.signal import Constant, FirstOrderLag, Ramp, Sine, Step, TimeTable
+from pvgraph import Circuit, ParameterError
+
+
+def _through_lag(source, tau=0.02):
+    """A circuit with ``source`` driving a first-order lag (so there is a state to integrate)."""
+    c = Circuit("src")
+    src = c.add("src", source)
+    lag = c.add("lag", FirstOrderLag(tau=tau))
+    c.connect(src.y, lag.u)
+    return c
+
+
+def test_constant_residual(dae):
+    system = _through_lag(Constant(k=2.5)).compile(eliminate_aliases=False)
+    r = dae.residual(system, values={"src.y": 2.5, "lag.u": 2.5, "lag.y": 1.0},
+                     ders={"lag.y": (2.5 - 1.0) / 0.02})
+    np.testing.assert_allclose(r, 0.0, atol=1e-12)
+
+
+def test_step_happens_exactly_at_its_time(sim):
+    t_step = 0.1234567
+    sol = sim(_through_lag(Step(height=2.0, offset=-1.0, t_step=t_step)), 0.3, rtol=1e-7)
+    (event,) = sol.events
+    assert event.name == "src.step"
+    assert event.t == pytest.approx(t_step, abs=1e-12)
+    before, after = sol.t < t_step, sol.t > t_step
+    assert np.all(sol["src.y"][before] == -1.0) and np.all(sol["src.y"][after] == 1.0)
+    # the lag starts from its value just before the step: no smearing across it
+    t = sol.t[after]
+    y0 = -1.0 * (1.0 - np.exp(-t_step / 0.02))
+    exact = 1.0 + (y0 - 1.0) * np.exp(-(t - t_step) / 0.02)
+    np.testing.assert_allclose(sol["lag.y"][after], exact, atol=2e-5)
+
+
+def test_step_at_time_zero_is_already_up(dae):
+    system = _through_lag(Step(height=3.0, t_step=0.0)).compile()
+    assert not system.event_specs
+    assert system.resolve("src.y") == (0.0, None, 3.0)
+
+
+def test_ramp_values_and_events(sim):
+    # algebraic outputs are exact to the Newton tolerance (about 1e-7 here), hence atol=1e-6
+    sol = sim(_through_lag(Ramp(height=4.0, duration=0.2, offset=1.0, t_start=0.1)), 0.5,
+              rtol=1e-7)
+    assert [e.name for e in sol.events] == ["src.start", "src.end"]
+    assert [e.t for e in sol.events] == pytest.approx([0.1, 0.3], abs=1e-12)
+    expected = 1.0 + 4.0 * np.clip((sol.t - 0.1) / 0.2, 0.0, 1.0)
+    np.testing.assert_allclose(sol["src.y"], expected, atol=1e-6)
+
+
+def test_time_table_interpolates_and_holds(sim):
+    t_tab, y_tab = (0.0, 0.1, 0.25, 0.4), (0.0, 2.0, -1.0, 0.5)
+    sol = sim(_through_lag(TimeTable(t=t_tab, y=y_tab)), 0.6, rtol=1e-7)
+    np.testing.assert_allclose(sol["src.y"], np.interp(sol.t, t_tab, y_tab), atol=1e-6)
+    assert sol.final("src.y") == 0.5
+
+
+def test_sine_values(sim):
+    sol = sim(_through_lag(Sine(amplitude=2.0, f=3.0, phase=0.4, offset=0.5)), 0.5, rtol=1e-7)
+    np.testing.assert_allclose(sol["src.y"], 0.5 + 2.0 * np.sin(6 * np.pi * sol.t + 0.4),
+                               atol=1e-6)
+
+
+@pytest.mark.parametrize("cls, kwargs, field", [
+    (Constant, {}, "k"), (Constant, {"k": float("nan")}, "k"),
+    (Step, {"t_step": -1.0}, "t_step"), (Ramp, {"duration": 0.0}, "duration"),
+    (Ramp, {"duration": 1.0, "t_start": -0.1}, "t_start"),
+    (TimeTable, {"t": (0.0,), "y": (1.0,)}, "t"),
+    (TimeTable, {"t": (0.0, 1.0), "y": (1.0, 2.0, 3.0)}, "t has 2 points but y has 3"),
+    (TimeTable, {"t": (0.0, 0.0), "y": (1.0, 2.0)}, "t must be strictly increasing"),
+    (TimeTable, {"t": (0.0, 1.0), "y": (1.0, 2.0), "method": "cubic"}, "method"),
+    (Sine, {"f": 0.0}, "f"),
+])
+def test_bad_parameters_name_the_field(cls, kwargs, field):
+    with pytest.raises(ParameterError, match=field):
+        cls(**kwargs)
+
+
+@pytest.mark.parametrize("source", [
+    lambda: Step(t_step=0.1), lambda: Ramp(duration=0.5, t_start=0.2),
+    lambda: TimeTable(t=(0.0, 1.0, 2.0), y=(0.0, 1.0, 0.0), method="pchip"),
+    lambda: Sine(f=2.0),
+])
+def test_jacobian_matches_finite_differences(dae, source):
+    system = _through_lag(source()).compile()
+    for t in (0.05, 0.3, 0.7):
+        dae.check_jacobian(system, t=t, values={"lag.y": 0.3}, ders={"lag.y": 1.0})

@@ -1,0 +1,136 @@
+"""Events: location, direction filtering, terminal stops and mode-switching actions."""
+
+import numpy as np
+import pytest
+
+from pvgraph.solver import Event, solve_dae
+
+
+def ramp(t, y, yp):
+    return yp - 1.0
+
+
+def test_event_located_at_known_time():
+    ev = Event(lambda t, y, yp: y[0] - 0.5, name="half")
+    res = solve_dae(ramp, (0.0, 2.0), [0.0], [1.0], events=[ev], rtol=1e-6, atol=1e-8)
+    assert len(res.events) == 1
+    rec = res.events[0]
+    assert rec.name == "half" and rec.index == 0 and rec.direction == 1
+    assert rec.t == pytest.approx(0.5, abs=1e-8)
+    assert rec.y[0] == pytest.approx(0.5, abs=1e-8)
+    np.testing.assert_allclose(res.t_events, [rec.t])
+    assert res.t[-1] == 2.0 and res.stats["nroot"] > 0
+
+
+def sine(t, y, yp):
+    return yp - np.cos(t)       # y = sin t crosses 0 falling at pi, 3pi and rising at 2pi
+
+
+@pytest.mark.parametrize("direction, expected", [
+    (0, [np.pi, 2 * np.pi, 3 * np.pi]),
+    (1, [2 * np.pi]),
+    (-1, [np.pi, 3 * np.pi]),
+])
+def test_direction_filtering(direction, expected):
+    ev = Event(lambda t, y, yp: y[0], direction=direction, name="zero")
+    res = solve_dae(sine, (0.0, 10.0), [0.0], [1.0], events=[ev], rtol=1e-9, atol=1e-11)
+    np.testing.assert_allclose(res.t_events, expected, atol=1e-7)
+    assert [r.direction for r in res.events] == [
+        1 if abs(t - 2 * np.pi) < 1e-3 else -1 for t in expected]
+
+
+def test_scipy_style_callable_and_terminal_stop():
+    def reach(t, y, yp):
+        return y[0] - 0.75
+
+    reach.terminal = True
+    reach.direction = 1
+    res = solve_dae(ramp, (0.0, 2.0), [0.0], [1.0], events=[reach], t_eval=[0.25, 0.5, 1.0])
+    assert res.t_events[0] == pytest.approx(0.75, abs=1e-8)
+    assert res.events[0].name == "reach"
+    np.testing.assert_allclose(res.t, [0.25, 0.5])      # stops before the later outputs
+    assert "terminal" in res.message
+    full = solve_dae(ramp, (0.0, 2.0), [0.0], [1.0], events=[reach])
+    assert full.t[-1] == pytest.approx(0.75, abs=1e-8)
+    assert full.y[-1, 0] == pytest.approx(0.75, abs=1e-8)
+
+
+G = 9.81
+RESTITUTION = 0.8
+H0 = 10.0
+
+
+def ball(t, y, yp):
+    """h' = v, v' = -g."""
+    return np.array([yp[0] - y[1], yp[1] + G])
+
+
+def bounce(t, y, yp):
+    return np.array([0.0, -RESTITUTION * y[1]]), np.array([-RESTITUTION * y[1], -G])
+
+
+def ball_exact(t_query, n_bounces=6):
+    """Bounce times and height at t_query for the ideal bouncing ball."""
+    times = [np.sqrt(2.0 * H0 / G)]
+    v = G * times[0] * RESTITUTION
+    for _ in range(n_bounces - 1):
+        times.append(times[-1] + 2.0 * v / G)
+        v *= RESTITUTION
+    k = np.searchsorted(times, t_query)
+    if k == 0:
+        return times, H0 - 0.5 * G * t_query ** 2
+    v_up = G * times[0] * RESTITUTION ** k
+    dt = t_query - times[k - 1]
+    return times, v_up * dt - 0.5 * G * dt ** 2
+
+
+def test_bouncing_ball_with_restitution():
+    ground = Event(lambda t, y, yp: y[0], direction=-1, action=bounce, name="ground")
+    t_end = 7.5
+    res = solve_dae(ball, (0.0, t_end), [H0, 0.0], [0.0, -G], events=[ground], rtol=1e-8,
+                    atol=1e-10, dense_output=True)
+    times, h_end = ball_exact(t_end)
+    expected = [t for t in times if t < t_end]
+    assert len(expected) == 4
+    np.testing.assert_allclose(res.t_events, expected, atol=1e-7)
+    assert res.y[-1, 0] == pytest.approx(h_end, abs=1e-6)
+    # both sides of each bounce are in the output: velocity flips sign
+    i = int(np.flatnonzero(res.t == res.t_events[0])[0])
+    assert res.y[i, 1] == pytest.approx(-G * times[0], rel=1e-7)
+    assert res.y[i + 1, 1] == pytest.approx(RESTITUTION * G * times[0], rel=1e-7)
+    # dense output follows the post-bounce trajectory
+    tq = 0.5 * (times[1] + times[2])
+    assert res.sol(tq)[0] == pytest.approx(ball_exact(tq)[1], abs=1e-6)
+
+
+AREA, INFLOW, K_OUT, LEVEL_MAX = 2.0, 1.0, 0.5, 1.0
+
+
+def test_tank_fills_then_pump_switches_off():
+    """A L' = q_in - q_out, q_out = k L (algebraic), q_in = Q while the pump is on."""
+    mode = {"pump": 1.0}
+
+    def tank(t, y, yp):
+        level, q_out = y
+        return np.array([AREA * yp[0] - (mode["pump"] * INFLOW - q_out),
+                         q_out - K_OUT * level])
+
+    def pump_off(t, y, yp):
+        mode["pump"] = 0.0      # the new mode; y' is recomputed consistently by the solver
+
+    full = Event(lambda t, y, yp: y[0] - LEVEL_MAX, direction=1, action=pump_off,
+                 name="full")
+    res = solve_dae(tank, (0.0, 10.0), [0.0, 0.3], [0.0, 0.0], algebraic=[1], events=[full],
+                    rtol=1e-8, atol=1e-10, t_eval=[1.0, 3.0, 9.0])
+    t_full = -AREA / K_OUT * np.log(1.0 - K_OUT * LEVEL_MAX / INFLOW)
+    assert res.t_events[0] == pytest.approx(t_full, abs=1e-7)
+
+    def level(t):
+        if t <= t_full:
+            return INFLOW / K_OUT * (1.0 - np.exp(-K_OUT * t / AREA))
+        return LEVEL_MAX * np.exp(-K_OUT * (t - t_full) / AREA)
+
+    np.testing.assert_allclose(res.y[:, 0], [level(t) for t in (1.0, 3.0, 9.0)], atol=1e-7)
+    np.testing.assert_allclose(res.y[:, 1], K_OUT * res.y[:, 0], atol=1e-9)
+    # L' after the switch is -q_out / A: the derivative was reinitialised
+    assert res.yp[-1, 0] == pytest.approx(-K_OUT * level(9.0) / AREA, abs=1e-7)
