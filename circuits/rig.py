@@ -27,6 +27,7 @@ from components.hydraulic import LaminarOrifice, Orifice, Pump, Tank, VolumeNode
 from components.hydraulic.solenoid import TimedOnOffValve
 from components.signal.sources import Constant
 from pvgraph import Circuit
+from pvgraph.units import circle_area
 
 from .pvg32.modules import build_pvg32
 from .pvg32.parameters import PVG32Params, report_tuned
@@ -82,7 +83,7 @@ def turbulent_load(p: PVG32Params | None = None, *, L1: str = "small", L3: str =
     return _rig_load(p or report_tuned(), "turbulent", L1, L3, l2_open, t_switch)
 
 
-def cylinder_load(p: PVG32Params | None = None, *, mass: float = 200.0, k: float = 2e5,
+def cylinder_load(p: PVG32Params | None = None, *, mass: float = 200.0, k: float = 2e4,
                   F0: float = 2000.0) -> Circuit:
     """A double-acting cylinder lifting a mass against a spring: a crane-like load.
 
@@ -93,7 +94,8 @@ def cylinder_load(p: PVG32Params | None = None, *, mass: float = 200.0, k: float
 
     p = p or report_tuned()
     c = Circuit("cylinder_load")
-    cyl = c.add("cylinder", Cylinder(D_piston=0.04, D_rod=0.022, stroke=0.3,
+    cyl = c.add("cylinder", Cylinder(A_A=circle_area(0.04), A_rod=circle_area(0.022),
+                                     stroke=0.3, V_dead_A=2e-5, V_dead_B=2e-5,
                                      beta=p.fluid.bulk_modulus))
     body = c.add("mass", SpoolMass(m=mass))
     spring = c.add("spring", LinearSpring(k=k, F0=F0))

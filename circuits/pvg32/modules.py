@@ -62,6 +62,15 @@ LS_DRAIN_AREA = 0.02e-6     # [m^2]
 # creeps slower the viscous term, 20000 N s/m, dominates anyway).
 FRICTION_V_EPS = 1e-3       # [m/s]
 
+# Stroke limits are stiff contacts whose onset is rounded over STOP_ROUNDING; the contact damping
+# switches on across that band. The component default (0.1 um) makes the switch practically
+# discontinuous for a spool leaving its stop at several cm/s, and the corrector iteration then
+# fails at any step size. 10 um is still far below every opening the model resolves (the
+# smallest dead band is 1.5 mm). The duty-cycle limits of the controller (0 and 100 %) are
+# rounded over DUTY_ROUNDING per cent for the same reason.
+STOP_ROUNDING = 1e-5        # [m]
+DUTY_ROUNDING = 0.5         # [%]
+
 P0_VOLUME = 0.2e-6          # [m^3] between A1 and A2
 PK_VOLUME = 1.0e-6          # [m^3] between A2 and the main spool
 LS_VOLUME = 0.1e-6          # [m^3] LS channel
@@ -97,7 +106,7 @@ def build_pvp(p: PVG32Params | None = None) -> Circuit:
     spring = c.add("spring", LinearSpring(k=pv.spring_rate, F0=pv.spring_preload))
     friction = c.add("friction", Friction(F_c=pv.coulomb_friction, b=pv.viscous_friction,
                                              v_eps=FRICTION_V_EPS))
-    stop = c.add("stop", EndStop(x_min=0.0, x_max=pv.stroke_max))
+    stop = c.add("stop", EndStop(x_min=0.0, x_max=pv.stroke_max, eps=STOP_ROUNDING))
     a3 = c.add("A3", VariableOrifice(opens="positive", theta=pv.flow_angle, **_fluid(p),
                                      **_table(tables.pvp_tank_area(
                                          pv.tank_area_dead_band, pv.tank_area_full_stroke,
@@ -134,7 +143,8 @@ def _build_compensator(c: Circuit, p: PVG32Params):
     friction = c.add("comp_friction", Friction(F_c=k.coulomb_friction, b=k.viscous_friction,
                                                        v_eps=FRICTION_V_EPS))
     # V2 = 1 cm^3 - A_k x_k vanishes at 3.93 mm (eq. 4.31): the stroke ends before that
-    stop = c.add("comp_stop", EndStop(x_min=0.0, x_max=0.9 * k.stroke_max))
+    stop = c.add("comp_stop", EndStop(x_min=0.0, x_max=0.9 * k.stroke_max,
+                                          eps=STOP_ROUNDING))
     a1 = c.add("A1", VariableOrifice(opens="negative", theta=k.closing_flow_angle, **_fluid(p),
                                      **_table(tables.compensator_closing_area())))
     a2 = c.add("A2", VariableOrifice(opens="positive", theta=k.opening_flow_angle, **_fluid(p),
@@ -194,7 +204,8 @@ def build_pvb(p: PVG32Params | None = None) -> Circuit:
     spring = c.add("main_spring", CenteringSpring(k=m.spring_rate, F0=m.spring_preload))
     friction = c.add("main_friction", Friction(F_c=m.coulomb_friction, b=m.viscous_friction,
                                                   v_eps=FRICTION_V_EPS))
-    stop = c.add("main_stop", EndStop(x_min=-m.stroke_max, x_max=m.stroke_max))
+    stop = c.add("main_stop", EndStop(x_min=-m.stroke_max, x_max=m.stroke_max,
+                                          eps=STOP_ROUNDING))
     a_h = main_spool_opening(p)
     edge = dict(theta=m.flow_angle, **_fluid(p))
     pos = _table(a_h, lambda x: x > 0.0)
@@ -261,7 +272,7 @@ def build_pve(p: PVG32Params | None = None) -> Circuit:
     lvdt = c.add("lvdt", LVDT(K=e.lvdt_gain, tau=e.lvdt_time_constant))
     controller = c.add("controller", PVEController(
         V_s=p.rig.supply_voltage, K_input=e.input_gain, x_offset=-e.input_offset,
-        K_dt=e.duty_gain / 1000.0 * 100.0, DT_0=100.0 * e.duty_offset))
+        K_dt=e.duty_gain / 1000.0 * 100.0, DT_0=100.0 * e.duty_offset, eps=DUTY_ROUNDING))
     c.connect(pilot.port, supply.a)
     c.connect(supply.b, upper.port, nc1.a, nc3.a)
     c.connect(nc1.b, no2.a, check_b.b, v5.port)          # V5 / P5 (eq. 4.98)

@@ -1,0 +1,61 @@
+"""Hydraulic power and energy balances over a simulation result.
+
+Port flows are positive into a component, so ``sum(p * q)`` over a component's hydraulic ports
+is the hydraulic power it absorbs (negative for a pump or flow source delivering power).
+"""
+
+from __future__ import annotations
+
+from typing import Mapping, Sequence
+
+import numpy as np
+
+__all__ = ["hydraulic_ports", "hydraulic_power", "energy_balance"]
+
+
+def hydraulic_ports(solution, component_path: str) -> list[str]:
+    """Names of the hydraulic ports (with both ``p`` and ``q``) of a component."""
+    prefix = component_path + "."
+    names = set(solution.system.all_names())
+    ports = sorted({nm[len(prefix):-2] for nm in names
+                    if nm.startswith(prefix) and nm.endswith(".p")
+                    and "." not in nm[len(prefix):-2]})
+    ports = [pt for pt in ports if f"{prefix}{pt}.q" in names]
+    if not ports:
+        raise KeyError(f"{component_path!r} has no hydraulic ports in this result")
+    return ports
+
+
+def hydraulic_power(solution, component_path: str) -> np.ndarray:
+    """Hydraulic power absorbed by a component [W] over ``solution.t``: sum of ``p * q``."""
+    total = np.zeros(len(solution.t))
+    for pt in hydraulic_ports(solution, component_path):
+        total = total + solution[f"{component_path}.{pt}.p"] * solution[f"{component_path}.{pt}.q"]
+    return total
+
+
+def energy_balance(solution, pump: str = "pump", *, losses: Sequence[str] = ("orifice",),
+                   volumes: Mapping[str, tuple[float, float]] | None = None) -> dict:
+    """Power balance of a circuit: delivered = dissipated + rate of stored compressible energy.
+
+    Parameters
+    ----------
+    pump : component delivering power (its absorbed power, negated).
+    losses : components dissipating power (their absorbed power).
+    volumes : mapping ``path -> (V, beta)`` of volume nodes (constant bulk modulus); the stored
+        energy is ``V p^2 / (2 beta)`` and its rate ``V p p' / beta``.
+
+    Returns a dict of arrays ``t, P_pump, P_loss, E_stored, dE_dt, imbalance``
+    (``imbalance = P_pump - P_loss - dE_dt``).
+    """
+    t = solution.t
+    P_pump = -hydraulic_power(solution, pump)
+    P_loss = sum((hydraulic_power(solution, c) for c in losses), np.zeros(len(t)))
+    E = np.zeros(len(t))
+    dE = np.zeros(len(t))
+    for path, (V, beta) in (volumes or {}).items():
+        p = solution[f"{path}.port.p"]
+        E = E + V * p * p / (2.0 * beta)
+        dE = dE + V * p * solution.der(f"{path}.port.p") / beta
+    return {"t": t, "P_pump": P_pump, "P_loss": P_loss, "E_stored": E, "dE_dt": dE,
+            "imbalance": P_pump - P_loss - dE}

@@ -1,0 +1,184 @@
+"""Steady operating points: solve F(t, y, 0) = 0.
+
+Newton's method with a backtracking line search on the scaled residual, using the exact
+Jacobian ``dF/dy`` of the compiled system. If Newton stalls, pseudo-transient continuation
+follows the circuit's own dynamics (implicit Euler steps of growing size ``dtau``, the Jacobian
+``dF/dy + dF/dy'/dtau``) towards an equilibrium and Newton is tried again from there.
+
+Scaling: variables by ``system.nominal``; residual rows by ``max_j |dF_i/dy_j| nominal_j`` at
+the start point (the size of the row's terms), so the tolerance is relative.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InitializationError
+from ..system import System
+
+__all__ = ["OperatingPoint", "steady_state"]
+
+
+@dataclass
+class OperatingPoint:
+    """A steady state of ``system``: ``y`` with ``yp = 0``; ``op["name"]`` looks up by name."""
+
+    y: np.ndarray
+    yp: np.ndarray
+    system: System
+    t: float = 0.0
+    residual_norm: float = 0.0
+    iterations: int = 0
+    method: str = "newton"
+    info: dict = field(default_factory=dict)
+
+    def __getitem__(self, name: str) -> float:
+        coef, idx, off = self.system.resolve(name)
+        return float(off if idx is None else coef * self.y[idx] + off)
+
+
+class _Scaled:
+    def __init__(self, system, t, y):
+        self.s, self.t = system, t
+        self.xs = np.where(system.nominal > 0, system.nominal, 1.0)
+        J = system.jacobian_dense(t, y, np.zeros(system.n), 0.0)
+        rs = np.nanmax(np.abs(J) * self.xs[None, :], axis=1) if system.n else np.zeros(0)
+        rs = np.where(np.isfinite(rs) & (rs > 0), rs, 1.0)
+        self.rs = rs
+
+    def F(self, y, yp=None):
+        yp = np.zeros(self.s.n) if yp is None else yp
+        return self.s.residual(self.t, y, yp) / self.rs
+
+    def norm(self, y, yp=None):
+        f = self.F(y, yp)
+        return float(np.max(np.abs(f))) if np.all(np.isfinite(f)) else np.inf
+
+
+def _solve(J, rhs):
+    dy = np.linalg.solve(J, rhs)
+    if not np.all(np.isfinite(dy)):
+        raise np.linalg.LinAlgError("non-finite step")
+    return dy
+
+
+def _newton(sc, y, tol, max_iter, c=0.0, y_prev=None):
+    """Damped Newton on F(t, y, c (y - y_prev)) = 0 (c = 0: the steady state).
+
+    Returns ``(y, norm, iterations, converged)``.
+    """
+    s = sc.s
+    n = s.n
+
+    def yp_of(yy):
+        return np.zeros(n) if c == 0.0 else c * (yy - y_prev)
+
+    fn = sc.norm(y, yp_of(y))
+    for it in range(1, max_iter + 1):
+        if fn <= tol:
+            return y, fn, it - 1, True
+        J = s.jacobian_dense(sc.t, y, yp_of(y), c) / sc.rs[:, None]
+        try:
+            dy = _solve(J, -sc.F(y, yp_of(y)))
+        except np.linalg.LinAlgError:
+            return y, fn, it, False
+        lam = 1.0
+        while lam > 1e-8:
+            y_new = y + lam * dy
+            fn_new = sc.norm(y_new, yp_of(y_new))
+            if fn_new <= (1.0 - 1e-4 * lam) * fn:
+                break
+            lam *= 0.5
+        else:
+            return y, fn, it, False
+        step = np.max(np.abs(lam * dy) / (np.abs(y) + sc.xs)) if n else 0.0
+        y, fn = y_new, fn_new
+        if step < 1e-14 and fn <= max(tol, 1e-6):  # round-off floor of the residual
+            return y, fn, it, True
+    return y, fn, max_iter, fn <= tol
+
+
+def _continuation(sc, y, tol, max_steps=400, dtau0=1e-6, dtau_max=1e6):
+    """Pseudo-transient continuation: implicit Euler steps with growing ``dtau``."""
+    dtau = dtau0
+    f0 = sc.norm(y)
+    steps = 0
+    while steps < max_steps and dtau < dtau_max * 10:
+        steps += 1
+        y_new, _, _, ok = _newton(sc, y.copy(), 1e-10, 8, c=1.0 / dtau, y_prev=y)
+        if not ok:
+            dtau *= 0.25
+            if dtau < 1e-14:
+                break
+            continue
+        f1 = sc.norm(y_new)
+        y = y_new
+        if f1 <= tol:
+            break
+        # switched evolution relaxation: grow dtau as the steady residual falls
+        dtau = min(dtau * min(10.0, max(1.5, f0 / max(f1, 1e-300))), dtau_max)
+        f0 = f1
+    return y, steps
+
+
+def _culprits(system, sc, y, k=6):
+    f = sc.F(y)
+    f = np.where(np.isfinite(f), f, np.inf)
+    J = system.jacobian_dense(sc.t, y, np.zeros(system.n), 0.0)
+    Jyp = system.jacobian_dense(sc.t, y, np.zeros(system.n), 1.0) - J
+    lines = []
+    for i in np.argsort(-np.abs(f))[:k]:
+        if f[i] == 0.0:
+            break
+        row = np.abs(J[i]) * sc.xs
+        cols = [system.names[j] for j in np.argsort(-row)[:3] if row[j] > 0]
+        what = "variables"
+        if not cols:  # only derivatives enter: this state can never settle
+            cols = [system.names[j] for j in np.flatnonzero(np.abs(Jyp[i]) > 0)[:3]]
+            what = "no steady value of"
+        lines.append(f"  {system.equations[i]}: scaled residual {f[i]:.3g}; "
+                     f"{what} {', '.join(cols) or '(none)'}")
+    return lines
+
+
+def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
+                 max_iter: int = 50, continuation: bool = True) -> OperatingPoint:
+    """Solve ``F(t, y, 0) = 0`` for a steady operating point of ``system``.
+
+    Parameters
+    ----------
+    y0 : array, optional
+        Start guess (default ``system.y0``), e.g. the end of a settling simulation.
+    tol : float
+        Tolerance on the max-norm of the scaled residual.
+    continuation : bool
+        Fall back to pseudo-transient continuation when Newton fails.
+
+    Raises
+    ------
+    InitializationError
+        No steady state found; the message names the equations with the largest scaled
+        residual and the variables they depend on most.
+    """
+    y = np.array(system.y0 if y0 is None else y0, dtype=float)
+    if system.n == 0:
+        return OperatingPoint(y, np.zeros(0), system, t, 0.0, 0, "trivial")
+    sc = _Scaled(system, t, y)
+    y1, fn, its, ok = _newton(sc, y.copy(), tol, max_iter)
+    method = "newton"
+    total = its
+    if not ok and continuation:
+        y2, steps = _continuation(sc, y.copy(), tol)
+        y1, fn, its, ok = _newton(sc, y2, tol, max_iter)
+        total += steps + its
+        method = "continuation"
+    if not ok:
+        lines = _culprits(system, sc, y1)
+        raise InitializationError(
+            f"{system.name}: no steady state found (scaled residual {fn:.3g} > {tol:g} after "
+            f"{total} iterations; Newton{' and continuation' if continuation else ''} failed). "
+            f"Largest residuals:\n" + "\n".join(lines) +
+            "\nCheck that every volume has an outlet and every mass a restoring force.")
+    return OperatingPoint(y1, np.zeros(system.n), system, t, fn, total, method)

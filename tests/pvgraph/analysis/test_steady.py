@@ -1,0 +1,77 @@
+"""Steady operating points: Newton, continuation, and errors that name the culprits."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from components import FlowSource, Orifice, Tank, VolumeNode
+from pvgraph import Circuit, Component, Variable, der
+from pvgraph.analysis import steady_state
+from pvgraph.analysis.steady import _newton, _Scaled
+from pvgraph.errors import InitializationError
+from pvgraph.units import bar, mm2
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from test_compiler import K, Q, V, demo  # noqa: E402
+
+
+def test_laminar_demo_is_exact():
+    s = demo().compile()
+    op = steady_state(s)
+    assert op.method == "newton"
+    assert op["node.port.p"] == pytest.approx(Q / K, rel=1e-12)
+    assert op["orifice.b.p"] == 0.0 and np.all(op.yp == 0.0)
+
+
+def test_turbulent_orifice():
+    Cd, A, rho = 0.6, mm2(2.0), 870.0
+    s = demo(Orifice(A=A, Cd=Cd, rho=rho, dp_t=bar(0.05))).compile()
+    op = steady_state(s)
+    p_ss = rho / 2 * (Q / (Cd * A)) ** 2
+    assert op["node.port.p"] == pytest.approx(p_ss, rel=5e-3)  # regularisation error
+    assert op["orifice.a.q"] == pytest.approx(Q, rel=1e-9)
+    assert op.residual_norm <= 1e-9
+
+
+class Cubic(Component):
+    """x' = -(x^3 - 2x + 2): Newton from 0 cycles/stalls, the dynamics reach x = -1.769."""
+
+    variables = {"x": Variable("1", 0.0, 1.0, "state")}
+
+    def equations(self, v, p):
+        return [der(v.x) + v.x * v.x * v.x - 2.0 * v.x + 2.0]
+
+
+def test_continuation_rescues_newton():
+    c = Circuit("cubic")
+    c.add("c", Cubic())
+    s = c.compile()
+    sc = _Scaled(s, 0.0, s.y0)
+    assert not _newton(sc, s.y0.copy(), 1e-9, 50)[3]  # plain (damped) Newton stalls
+    op = steady_state(s)
+    assert op.method == "continuation"
+    root = np.roots([1.0, 0.0, -2.0, 2.0])
+    assert op["c.x"] == pytest.approx(root[np.isreal(root)].real[0], rel=1e-9)
+
+
+def test_no_steady_state_names_the_volume():
+    c = Circuit("closed")
+    pump = c.add("pump", FlowSource(Q=Q))
+    node = c.add("node", VolumeNode(V=V))
+    c.connect(pump.port, node.port)
+    with pytest.raises(InitializationError) as err:
+        steady_state(c.compile())
+    msg = str(err.value)
+    assert "node" in msg and "node.port.p" in msg and "VolumeNode" in msg
+
+
+def test_pvg32_rig_needs_continuation_from_rest():
+    from circuits.pvg32.parameters import report_tuned
+    from circuits.rig import build_rig
+    s = build_rig(report_tuned(), U_input=4.29).compile()
+    op = steady_state(s)
+    r = s.residual(0.0, op.y, op.yp)
+    assert np.all(np.isfinite(r)) and op.residual_norm <= 1e-9
+    assert op["pvg.pvb.main_spool.flange.x"] == pytest.approx(-3.46e-3, rel=0.02)
