@@ -88,6 +88,8 @@ def main():
     print(header)
     print("|" + "|".join("-" * (len(c)) for c in header.split("|")[1:-1]) + "|")
     ratios = []
+    for solver in (solve_dae, solve_dae_sundials):     # warm-up: imports, first-call caches
+        run(solver, AKZO, 1e-4, args.fd)
     for problem, tols in (QUICK_CASES if args.quick else CASES):
         short = "Akzo" if "Akzo" in problem.name else "Transistor"
         variants = [(False, "")]
