@@ -61,11 +61,6 @@ def cmd_validate(args) -> int:
     if unknown:
         raise PvgraphError(f"unknown scenario(s) {unknown}; valid: {', '.join(scenario_names())}")
     params = _preset(args.preset)
-    if args.calibrate:
-        from .analysis.calibration import calibrate_pvg32
-        fit = calibrate_pvg32(params, names=names, workers=args.workers)
-        print(fit.report())
-        params = fit.params
     t0 = time.perf_counter()
     results = V.validate(params, names, law=args.law, workers=args.workers,
                          progress=_progress(len(names), "simulating"))
@@ -156,8 +151,6 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--scenario", action="append", help="run only this scenario (repeatable)")
     v.add_argument("--workers", type=int, default=None, help="parallel processes (default 2)")
     v.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
-    v.add_argument("--calibrate", action="store_true",
-                   help="fit uncertain parameters to the lab data first")
     v.set_defaults(func=cmd_validate)
 
     s = sub.add_parser("simulate", help="simulate one scenario (test-1 ... test-12, sweep-1 ...)")

@@ -61,7 +61,7 @@ def _as_mask(algebraic, n):
 def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None, jac=None,
               jac_sparsity=None, events=None, t_eval=None, max_step=None, first_step=None,
               calc_initial="algebraic", max_order=5, max_steps=100_000, var_names=None,
-              dense_output=False):
+              dense_output=False, suppress_alg=True):
     """Solve the implicit DAE F(t, y, y') = 0 of index at most one.
 
     Parameters
@@ -78,10 +78,14 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
         Absolute tolerance(s), positive.
     algebraic : array_like of bool (n,) or of int, optional
         Algebraic variables (their derivative does not appear in F). They are solved for by
-        ``calc_initial="algebraic"`` and left out of the local error test (IDA's
-        suppressalg). If None and the initial calculation needs them, the variables whose
+        ``calc_initial="algebraic"`` and, with ``suppress_alg=True`` (the default), left out
+        of the local error test (IDA's suppressalg, which IDA leaves off). If None and the initial calculation needs them, the variables whose
         derivative has an identically zero column in dF/dy' at t0 are taken as algebraic
         for the initialisation only.
+    suppress_alg : bool
+        Leave the algebraic variables out of the error test. Cheaper and more robust on the
+        PVG 32 rig, but algebraic values interpolated to ``t_eval`` between steps are then not
+        error-controlled (values at the solver's own steps are); pass False for IDA's default.
     jac : callable, optional
         ``jac(t, y, yp, c) -> dF/dy + c dF/dy'`` as ndarray or scipy.sparse matrix. Finite
         differences when None.
@@ -160,12 +164,12 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
 
     with np.errstate(all="ignore"):
         return _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask,
-                          algebraic is not None, jac, jac_sparsity, event_list, t_eval,
+                          algebraic is not None, bool(suppress_alg), jac, jac_sparsity, event_list, t_eval,
                           max_step, first_step, calc_initial, int(max_order), int(max_steps),
                           var_names, dense_output)
 
 
-def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, jac,
+def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, suppress_alg, jac,
                jac_sparsity, event_list, t_eval, max_step, first_step, calc_initial,
                max_order, max_steps, var_names, dense_output):
     """The integration loop behind ``solve_dae`` (arguments already checked)."""
@@ -184,7 +188,9 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, ja
         fun = residual
     jacobian = JacobianEvaluator(fun, n, jac, jac_sparsity)
     lu = LUSolver()
-    error_mask = (~alg_mask).astype(float) if alg_given and alg_mask.any() else None
+    # IDA's suppressalg (see the suppress_alg parameter)
+    error_mask = ((~alg_mask).astype(float)
+                  if suppress_alg and alg_given and alg_mask.any() else None)
 
     def initialise(t, y, yp, mode):
         mask = alg_mask
