@@ -1,4 +1,4 @@
-"""Helpers for component tests: points by name, residuals, Jacobian vs finite differences."""
+"""Shared fixtures of the component tests: DAE point checks, a solver bench, force laws."""
 
 from __future__ import annotations
 
