@@ -99,11 +99,15 @@ class Circuit:
         return {name: ref.port for name, (ref, _) in self._exposed.items()}
 
     def __getitem__(self, path: str):
+        import difflib
         node = self
         for part in path.split("."):
             if not isinstance(node, Circuit) or part not in node._components:
-                raise KeyError(f"circuit {self.path!r} has no component {path!r}; its components "
-                               f"are {sorted(self._components)}")
+                pool = sorted(node._components) if isinstance(node, Circuit) else []
+                close = difflib.get_close_matches(part, pool, n=1)
+                hint = f" Did you mean {close[0]!r}?" if close else ""
+                raise KeyError(f"circuit {self.path!r} has no component {path!r} ({part!r} is "
+                               f"not in {node.path!r}, whose components are {pool}).{hint}")
             node = node._components[part]
         return node
 

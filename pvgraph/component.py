@@ -258,7 +258,8 @@ class Component:
             try:
                 params = cls.Params(**kwargs)
             except ValidationError as exc:
-                raise ParameterError(_describe_validation(cls.__name__, exc)) from None
+                raise ParameterError(_describe_validation(cls.__name__, exc,
+                                                          list(cls.Params.model_fields))) from None
         elif not isinstance(params, cls.Params):
             raise ParameterError(f"{cls.__name__} takes parameters of type {cls.Params.__name__}, "
                                  f"got {type(params).__name__}")
@@ -335,12 +336,17 @@ def _unknown_port_message(owner, name, ports) -> str:
             f"ports are {sorted(ports)}.{hint}")
 
 
-def _describe_validation(where: str, exc: ValidationError) -> str:
+def _describe_validation(where: str, exc: ValidationError, fields=()) -> str:
     lines = []
     for err in exc.errors():
         loc = ".".join(str(x) for x in err["loc"]) or "(model)"
-        value = err.get("input")
-        lines.append(f"  {loc} = {value!r}: {err['msg']}")
+        if err["type"] == "missing":
+            lines.append(f"  {loc}: required parameter not given")
+        elif err["type"] == "extra_forbidden":
+            lines.append(f"  {loc} = {err.get('input')!r}: not a parameter of {where}; it accepts "
+                         f"{', '.join(fields)}")
+        else:
+            lines.append(f"  {loc} = {err.get('input')!r}: {err['msg']}")
     return f"invalid parameters for {where}:\n" + "\n".join(lines)
 
 
