@@ -21,12 +21,15 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import statistics
+import sys
 import time
 
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from _machine import machine  # noqa: E402
 from pvgraph.solver import solve_dae, solve_dae_sundials
 from pvgraph.solver.testset import AKZO, TRANSISTOR, mescd
 
@@ -58,20 +61,6 @@ def measure(problem, tol, repeats, fd, suppressalg=False):
         dt, r_ida = run(solve_dae_sundials, problem, tol, fd, suppressalg)
         t_ida.append(dt)
     return statistics.median(t_pv), r_pv, statistics.median(t_ida), r_ida
-
-
-def machine():
-    """nproc, CPU model and Python version."""
-    cpu = "unknown"
-    try:
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    return f"nproc={os.cpu_count()}, CPU: {cpu}, Python {platform.python_version()}"
 
 
 def main():

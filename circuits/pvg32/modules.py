@@ -114,19 +114,17 @@ def build_pvp(p: PVG32Params | None = None) -> Circuit:
     v3 = c.add("V3", PistonChamber(A=pv.spool_area, V0=pv.spring_chamber_volume, side=-1,
                                    beta=beta))
     a6 = c.add("A6", Orifice(A=pv.ls_orifice_area, **_fluid(p)))
-    flange = [spool.flange, spring.flange, friction.flange, stop.flange, a3.flange, v3.flange]
+    v6 = c.add("V6", PistonChamber(A=pv.spool_area, V0=pv.pressure_chamber_volume, side=1,
+                                   beta=beta))
     if pv.pressure_chamber_orifice_area is not None:
-        v6 = c.add("V6", PistonChamber(A=pv.spool_area, V0=pv.pressure_chamber_volume, side=1,
-                                       beta=beta))
+        # tuned model: the pressure chamber is fed from Vp through A7 (4.7.3)
         a7 = c.add("A7", Orifice(A=pv.pressure_chamber_orifice_area, **_fluid(p)))
         c.connect(vp.port, a3.a, a7.a)
         c.connect(a7.b, v6.port)
     else:
-        v6 = c.add("V6", PistonChamber(A=pv.spool_area, V0=pv.pressure_chamber_volume, side=1,
-                                       beta=beta))
         c.connect(vp.port, a3.a, v6.port)
-    flange.append(v6.flange)
-    c.connect(*flange)
+    c.connect(spool.flange, spring.flange, friction.flange, stop.flange, a3.flange, v3.flange,
+              v6.flange)
     c.connect(a6.b, v3.port)
     c.expose("P", vp.port, "pump line (Vp)")
     c.expose("T", a3.b, "tank")
