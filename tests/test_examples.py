@@ -67,6 +67,100 @@ def _pvg32_stack(r, tmp_path):
     assert (tmp_path / "pvg32_stack.png").exists()
 
 
+@check("pve_linear_model")
+def _pve_linear_model(r, tmp_path):
+    # report 4.8.4 / figures 4.60-4.61: table 4.15 with c_vm = 25 has one conjugate pair in the
+    # right half plane; c_vm = 2500 makes it stable
+    rhp = r["table_poles"]["evaluated_c25"]
+    rhp = rhp[rhp.real > 0]
+    assert len(rhp) == 2 and rhp[0] == pytest.approx(rhp[1].conjugate(), rel=1e-9)
+    assert r["table_rhp"]["evaluated_c2500"] == 0
+    # with the duty slope and the NC/NO signs made consistent the loop is still unstable at
+    # c_vm = 25; adding the flow the moving spool displaces (A_m dx_m/dt, dropped in eq.
+    # 4.147) damps it without any spool friction, as the nonlinear model is damped
+    assert r["table_rhp"]["corrected_c25"] == 2 and r["table_rhp"]["complete_c25"] == 0
+    # ... and that complete hand model has the report's margins (4.9: GM 9.91 dB at 214 rad/s)
+    hand = r["margins"]["hand_complete"]
+    assert hand["w_gm"] == pytest.approx(214.0, rel=0.05)
+    assert hand["gm_db"] == pytest.approx(9.91, abs=1.0)
+    # the automatic model with the NC valves' lag at the linear model's 3 ms (4.8.2) instead
+    # of 20 ms (4.5.5) has the report's crossovers and phase margin too
+    nc3 = r["margins"]["automatic_nc3ms"]
+    assert nc3["w_gm"] == pytest.approx(214.0, rel=0.05)
+    assert nc3["w_pm"] == pytest.approx(87.5, rel=0.1)
+    assert nc3["pm"] == pytest.approx(49.7, abs=5.0)
+    # the table's poles put the phase crossover below 214 rad/s for any c_vm: at 214 rad/s
+    # the PVE (330, 27 rad/s) and LVDT (169 rad/s) poles alone lag 167 deg and the spool,
+    # past its 46 rad/s natural frequency, more than 90 deg
+    assert r["margins"]["table_4_15"]["w_gm"] < 214.0
+    # root locus and Bode agree: the loop goes unstable at the gain margin
+    for model in ("table_4_15", "hand_complete", "automatic"):
+        gm = 10.0 ** (r["margins"][model]["gm_db"] / 20.0)
+        assert r["k_crit"][model] == pytest.approx(gm, rel=0.01)
+    # the automatic linear model is stable, and predicts a small step of the nonlinear circuit
+    assert max(r["auto_poles"].real) < 0.0
+    assert r["small_step_error"] < 0.05                       # within 5 % of the step
+    # the fastest pair is the spool on the oil springs of V4 and V5 (eq. 4.93-4.94, 4.103):
+    # w = sqrt(beta A_m^2 (1/V4 + 1/V5) / M_m) with the report's 7000 bar, 254.5 mm^2,
+    # 13 + A_m x_m and 27 - A_m x_m cm^3, 1.754 kg
+    a_m, x_m = math.pi / 4 * 0.018 ** 2, r["x_op_mm"] * 1e-3
+    w_oil = math.sqrt(7e8 * a_m ** 2 * (1 / (13e-6 + a_m * x_m) + 1 / (27e-6 - a_m * x_m))
+                      / 1.754)
+    fast = [w for w, p in zip(r["auto_wn"], r["auto_poles"]) if p.imag > 0 and w > 1000.0]
+    assert len(fast) == 1 and fast[0] == pytest.approx(w_oil, rel=0.03)
+    # a P loop under-reading by the LVDT gain 0.945 settles below x_set / 0.945
+    assert 0.9 < r["auto_dc_gain"] < 1.0 / 0.945
+    assert 0.9 * 3.5 < r["x_nonlinear_final_mm"] < 3.5 / 0.945
+    # report 4.8.4 (figure 4.62): the duty-cycle limits make the nonlinear step slower
+    assert r["metrics"]["nonlinear"]["rise_time"] > 1.5 * r["metrics"]["automatic"]["rise_time"]
+    # report 4.9: its overshoot 27.8 % is a dominant pair with zeta = 0.38; the automatic
+    # model's dominant complex pair is damped alike (within 0.1)
+    zeta_report = 1.0 / math.sqrt(1.0 + (math.pi / math.log(100.0 / 27.7916)) ** 2)
+    pair = [z for z, p in zip(r["auto_zeta"], r["auto_poles"]) if p.imag > 1.0][0]
+    assert pair == pytest.approx(zeta_report, abs=0.1)
+    # report 4.9 / figure 4.64: a lower P gain raises both margins, cuts the overshoot and
+    # slows the rise, for the report's models and for the automatic one
+    low = r["gains"]["report_0.3"]
+    for model in ("table_4_15", "hand_complete", "automatic"):
+        base_m, base_s = r["margins"][model], r["metrics"][model]
+        assert low[model]["pm"] > base_m["pm"] and low[model]["gm_db"] > base_m["gm_db"]
+        assert low[model]["overshoot"] < base_s["overshoot"]
+        assert low[model]["rise_time"] > base_s["rise_time"]
+    assert low["automatic"]["gm_db"] == pytest.approx(
+        r["margins"]["automatic"]["gm_db"] - 20.0 * math.log10(0.3), abs=0.05)
+    # the tuned gain meets its phase margin and the nonlinear circuit with the PVE's duty
+    # slope scaled by it follows the linear prediction
+    design = r["gains"]["design"]
+    assert 0.0 < r["k_design"] < 1.0
+    assert design["automatic"]["pm"] == pytest.approx(60.0, abs=0.5)
+    assert r["design_small_step_error"] < 0.05
+    assert design["nonlinear_3p5mm"]["overshoot"] < r["metrics"]["nonlinear"]["overshoot"]
+    # ... at a price: holding the spool against its spring takes a pressure difference, i.e. a
+    # duty-cycle offset, which a flatter slope makes out of a larger position error
+    assert design["nonlinear_3p5mm"]["ess"] > 2.0 * r["metrics"]["nonlinear"]["ess"]
+    for name in ("step", "gain", "bode", "poles"):
+        assert Path(r["paths"][name]).stat().st_size > 10_000
+
+
+@check("pvp_bypass_loss")
+def _pvp_bypass_loss(r, tmp_path):
+    rows = r["rows"]
+    q_load = [x["q_load"] for x in rows]
+    for x in rows:
+        assert abs(x["imbalance"]) < 1e-9 * x["pump"]                 # power is conserved
+        assert 11.0 <= x["margin"] <= 17.0                            # pump follows LS + margin
+        # the rest (~0.1 L/min) feeds the PVE pilot supply and the LS drain
+        assert x["q_pump"] == pytest.approx(x["q_load"] + x["q_bypass"], abs=0.2)
+        assert x["bypass"] < x["bypass_fixed"]                        # load sensing saves power
+        assert x["load"] == pytest.approx(x["p_load"] * 1e5 * x["q_load"] / 60000, rel=1e-9)
+    assert max(q_load) - min(q_load) < 0.02 * max(q_load)             # compensated flow
+    # bypass loss = Q_bypass (p_L + margin): linear in p_L with slope Q_bypass [W/bar]
+    q_byp = sum(x["q_bypass"] for x in rows) / len(rows) / 60000
+    assert r["bypass_slope_W_per_bar"] == pytest.approx(q_byp * 1e5, rel=0.02)
+    assert r["bypass_intercept_W"] == pytest.approx(q_byp * 1e5 * rows[0]["margin"], rel=0.1)
+    assert (tmp_path / "pvp_bypass_loss.png").exists()
+
+
 SCRIPTS = sorted(p for p in EXAMPLES.glob("*.py") if not p.name.startswith("_"))
 
 

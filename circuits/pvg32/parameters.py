@@ -43,6 +43,8 @@ __all__ = [
     "PVG32Params",
     "report_initial",
     "report_tuned",
+    "parameter_paths",
+    "with_values",
 ]
 
 _SPOOL_D = mm(18.0)  # all three spools are 18 mm (eq 4.5, 4.32, 4.71)
@@ -575,3 +577,52 @@ def report_tuned() -> PVG32Params:
         main_spool=MainSpoolParams(viscous_friction=25.0),
         rig=RigParams(pump_flow=lpm(16.3), supply_voltage=11.5),
     )
+
+
+# --------------------------------------------------------------------------------------------
+def parameter_paths(p: PVG32Params | None = None) -> list[str]:
+    """Every numeric parameter as a dotted path, e.g. ``"rig.pump_flow"``, ``"rig.L3.laminar_small"``."""
+    out = []
+
+    def walk(model, prefix):
+        for name in type(model).model_fields:
+            value = getattr(model, name)
+            if isinstance(value, BaseModel):
+                walk(value, f"{prefix}{name}.")
+            elif isinstance(value, (int, float)) and not isinstance(value, bool):
+                out.append(prefix + name)
+    walk(p or PVG32Params(), "")
+    return out
+
+
+def with_values(p: PVG32Params, updates: dict[str, float]) -> PVG32Params:
+    """A copy of ``p`` with the dotted-path parameters in ``updates`` replaced and re-validated.
+
+    Raises :class:`pvgraph.errors.ParameterError` naming an unknown path (with the closest valid
+    ones) or a value outside the field's bounds.
+    """
+    import difflib
+
+    from pydantic import ValidationError
+
+    from pvgraph.errors import ParameterError
+
+    data = p.model_dump()
+    valid = parameter_paths(p)
+    for path, value in updates.items():
+        if path not in valid:
+            close = difflib.get_close_matches(path, valid, n=3, cutoff=0.5)
+            hint = f" Did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+            raise ParameterError(f"{path!r} is not a PVG 32 parameter.{hint} "
+                                 f"(circuits.pvg32.parameters.parameter_paths() lists them all)")
+        *groups, leaf = path.split(".")
+        node = data
+        for g in groups:
+            node = node[g]
+        node[leaf] = value
+    try:
+        return PVG32Params.model_validate(data)
+    except ValidationError as exc:
+        lines = [f"  {'.'.join(str(x) for x in e['loc'])} = {e.get('input')!r}: {e['msg']}"
+                 for e in exc.errors()]
+        raise ParameterError("invalid PVG 32 parameter value(s):\n" + "\n".join(lines)) from None

@@ -9,6 +9,17 @@ The compiler guarantees index one, so ``M = [J_yp[:, x], J_y[:, z]]`` is regular
 ``[dx'; dz] = -M^-1 (J_y[:, x] dx + F_u du)`` gives ``A, B`` (rows of ``dx'``) and the algebraic
 response (rows of ``dz``) from which any named output's ``C, D`` follow.
 
+Loops and python-control
+------------------------
+A circuit with its own controller linearises to the *closed* loop. When an input enters the
+circuit only through a comparator ``e = input - output`` (the PVE's set point and LVDT reading,
+say), the loop is opened exactly in the linear model: with ``x' = A x + b e`` and
+``e = r - c x`` the closed loop has ``A - b c``, so the open loop is ``A + b c``
+(:meth:`LinearModel.open_loop`); :meth:`LinearModel.feedback` closes it again with any gain.
+Margins, step metrics, damping and root loci are thin wrappers over python-control
+(``control.stability_margins``, ``control.step_info``, ``control.damp``,
+``control.root_locus_map``).
+
 Inputs
 ------
 A compiled system has its parameters folded into the generated code, so an input cannot be
@@ -25,7 +36,7 @@ perturbed inside it. Inputs are therefore given either
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Mapping, Sequence
+from typing import Callable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -33,9 +44,23 @@ from ..errors import PvgraphError
 from ..system import System
 from .steady import OperatingPoint, steady_state
 
-__all__ = ["LinearModel", "linearize", "linearize_circuit", "input_sensitivity"]
+__all__ = ["LinearModel", "Margins", "linearize", "linearize_circuit", "input_sensitivity"]
 
 _C_BIG = 2.0 ** 30  # c used to split dF/dy' from dF/dy without cancellation
+
+
+class Margins(NamedTuple):
+    """Gain and phase margins of a loop transfer function (``control.stability_margins``)."""
+
+    gain: float         # gain margin [-] (inf if the phase never reaches -180 deg)
+    phase: float        # phase margin [deg]
+    w_gain: float       # phase crossover frequency, where the gain margin is read [rad/s]
+    w_phase: float      # gain crossover frequency, where the phase margin is read [rad/s]
+
+    @property
+    def gain_db(self) -> float:
+        """Gain margin [dB]."""
+        return float(20.0 * np.log10(self.gain))
 
 
 @dataclass
@@ -88,6 +113,104 @@ class LinearModel:
         return control.ss(self.A, self.B, self.C, self.D, inputs=clean(self.input_names),
                           outputs=clean(self.output_names), states=clean(self.state_names))
 
+    def siso(self, output=0, input=0):
+        """The path from ``input`` to ``output`` as a python-control ``StateSpace``."""
+        import control
+        i = self._idx(output, self.output_names, "output")
+        j = self._idx(input, self.input_names, "input")
+        return control.ss(self.A, self.B[:, j:j + 1], self.C[i:i + 1], self.D[i:i + 1, j:j + 1])
+
+    def margins(self, output=0, input=0, *, points_per_decade: int = 200) -> Margins:
+        """Gain and phase margins of the path ``input -> output`` taken as a loop transfer
+        function (negative unity feedback), with their crossover frequencies.
+
+        ``control.stability_margins`` on the frequency response, sampled from two decades below
+        the slowest to two above the fastest pole or zero: a linearised circuit has modes up
+        to 1e8 rad/s, whose transfer-function polynomials overflow ``control.margin``'s
+        default polynomial method.
+        """
+        import control
+        sys = self.siso(output, input)
+        w = _frequency_grid(np.concatenate([self.poles(), control.zeros(sys)]),
+                            points_per_decade)
+        resp = control.frequency_response(sys, w)
+        h = np.asarray(resp.complex).reshape(-1)
+        gm, pm, _, wcg, wcp, _ = control.stability_margins(
+            (np.abs(h), np.degrees(np.unwrap(np.angle(h))), w))
+        return Margins(float(gm), float(pm), float(wcg), float(wcp))
+
+    def step_info(self, output=0, input=0, **options) -> dict:
+        """``control.step_info`` of the path ``input -> output`` (rise time 10-90 %, settling
+        time to 2 %, overshoot in % of the final value, ...); ``options`` go to it unchanged.
+
+        Unless ``timepts`` is given, the response is computed over ten time constants of the
+        slowest stable pole in 20000 steps: python-control's own horizon follows the fast
+        modes of a linearised circuit and can end before a slow mode has settled.
+        """
+        import control
+        if "timepts" not in options:
+            rate = -self.poles().real
+            rate = rate[rate > 0.0]
+            t_end = 10.0 / rate.min() if rate.size else 1.0
+            options["timepts"] = np.linspace(0.0, t_end, 20001)
+        return control.step_info(self.siso(output, input), **options)
+
+    def damping(self):
+        """``(wn, zeta, poles)``: natural frequency [rad/s] and damping ratio of each pole
+        (``control.damp``), sorted by decreasing real part like :meth:`poles`."""
+        import control
+        n = self.A.shape[0]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            wn, zeta, p = control.damp(control.ss(self.A, np.zeros((n, 1)), np.zeros((1, n)),
+                                                  0.0), doprint=False)
+        order = np.argsort(-np.asarray(p).real, kind="stable")
+        return np.asarray(wn)[order], np.asarray(zeta)[order], np.asarray(p)[order]
+
+    def open_loop(self, input, output) -> "LinearModel":
+        """The model with the comparator ``e = input - output`` removed: ``input`` then drives
+        ``e`` directly and ``(open_loop, output, input)`` is the loop transfer function.
+
+        Valid only if ``input`` enters the circuit solely through ``input - output`` (a
+        set point compared with a measurement) and ``output`` has no feedthrough from it.
+        """
+        j, i = self._loop_indices(input, output)
+        cb = self.C[i:i + 1]
+        return self._with(self.A + self.B[:, j:j + 1] @ cb, self.B,
+                          self.C + self.D[:, j:j + 1] @ cb, self.D)
+
+    def feedback(self, input, output, gain=1.0) -> "LinearModel":
+        """Close ``input = gain * (r - output)``; ``r`` takes the place of ``input``.
+
+        ``m.open_loop(u, y).feedback(u, y)`` is ``m`` again; ``gain`` is a proportional
+        controller in series with the loop.
+        """
+        j, i = self._loop_indices(input, output)
+        cb, bj, dj = self.C[i:i + 1], self.B[:, j:j + 1], self.D[:, j:j + 1]
+        B, D = self.B.copy(), self.D.copy()
+        B[:, j:j + 1] *= gain
+        D[:, j:j + 1] *= gain
+        return self._with(self.A - gain * bj @ cb, B, self.C - gain * dj @ cb, D)
+
+    def root_locus(self, output=0, input=0, gains=None):
+        """``(gains, loci)``: closed-loop poles of ``gain * (input -> output)`` under negative
+        unity feedback, one row per gain (``control.root_locus_map``)."""
+        import control
+        data = control.root_locus_map(self.siso(output, input), gains=gains)
+        return np.asarray(data.gains), np.asarray(data.loci)
+
+    def _loop_indices(self, input, output):
+        j = self._idx(input, self.input_names, "input")
+        i = self._idx(output, self.output_names, "output")
+        if self.D[i, j] != 0.0:
+            raise PvgraphError(f"output {self.output_names[i]!r} has a direct feedthrough from "
+                               f"input {self.input_names[j]!r}; the loop through them is "
+                               f"algebraic and cannot be opened or closed here")
+        return j, i
+
+    def _with(self, A, B, C, D) -> "LinearModel":
+        return LinearModel(A, B, C, D, list(self.state_names), list(self.input_names),
+                           list(self.output_names), self.op)
+
     def step(self, t, output=0, input=0, amplitude=1.0) -> np.ndarray:
         """Response of ``output`` to a step of size ``amplitude`` in ``input`` at t = 0."""
         from scipy import signal
@@ -96,6 +219,14 @@ class LinearModel:
         sys = signal.StateSpace(self.A, self.B[:, j:j + 1], self.C[i:i + 1], self.D[i:i + 1, j:j + 1])
         _, yout, _ = signal.lsim(sys, np.full(len(t), amplitude), t)
         return np.asarray(yout).reshape(-1)
+
+
+def _frequency_grid(roots, points_per_decade):
+    """Log-spaced frequencies [rad/s] two decades around the magnitudes of ``roots``."""
+    mag = np.abs(np.asarray(roots))
+    mag = mag[np.isfinite(mag) & (mag > 0.0)]
+    lo, hi = (np.log10(mag.min()) - 2.0, np.log10(mag.max()) + 2.0) if mag.size else (-2.0, 4.0)
+    return np.logspace(lo, hi, max(int((hi - lo) * points_per_decade), 2))
 
 
 def _jacobians(system, op):

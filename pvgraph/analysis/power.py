@@ -13,10 +13,10 @@ import numpy as np
 __all__ = ["hydraulic_ports", "hydraulic_power", "energy_balance"]
 
 
-def hydraulic_ports(solution, component_path: str) -> list[str]:
+def hydraulic_ports(result, component_path: str) -> list[str]:
     """Names of the hydraulic ports (with both ``p`` and ``q``) of a component."""
     prefix = component_path + "."
-    names = set(solution.system.all_names())
+    names = set(result.system.all_names())
     ports = sorted({nm[len(prefix):-2] for nm in names
                     if nm.startswith(prefix) and nm.endswith(".p")
                     and "." not in nm[len(prefix):-2]})
@@ -26,11 +26,15 @@ def hydraulic_ports(solution, component_path: str) -> list[str]:
     return ports
 
 
-def hydraulic_power(solution, component_path: str) -> np.ndarray:
-    """Hydraulic power absorbed by a component [W] over ``solution.t``: sum of ``p * q``."""
-    total = np.zeros(len(solution.t))
-    for pt in hydraulic_ports(solution, component_path):
-        total = total + solution[f"{component_path}.{pt}.p"] * solution[f"{component_path}.{pt}.q"]
+def hydraulic_power(result, component_path: str):
+    """Hydraulic power absorbed by a component [W]: the sum of ``p * q`` over its ports.
+
+    ``result`` is a :class:`~pvgraph.simulate.Solution` (gives an array over ``result.t``) or an
+    :class:`~pvgraph.analysis.OperatingPoint` (gives a float).
+    """
+    total = 0.0
+    for pt in hydraulic_ports(result, component_path):
+        total = total + result[f"{component_path}.{pt}.p"] * result[f"{component_path}.{pt}.q"]
     return total
 
 

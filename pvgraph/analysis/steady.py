@@ -35,6 +35,11 @@ class OperatingPoint:
     info: dict = field(default_factory=dict)
 
     def __getitem__(self, name: str) -> float:
+        """The value of an unknown, an eliminated alias or a derived output (``v.observe``)."""
+        if name in self.system.observed:
+            vals = self.system.evaluate_observed(np.array([self.t]), self.y[None, :],
+                                                 self.yp[None, :], [self.system.modes])
+            return float(vals[name][0])
         coef, idx, off = self.system.resolve(name)
         return float(off if idx is None else coef * self.y[idx] + off)
 

@@ -1,4 +1,5 @@
-"""Linear models: exact for linear circuits, analytic poles, margins, the PVG 32 example."""
+"""Linear models: exact for linear circuits, analytic poles, margins, step metrics, damping,
+opening and closing loops, the PVG 32 example."""
 
 import importlib.util
 import math
@@ -12,6 +13,8 @@ from components import (Constant, Damper, FlowSource, ForceInput, LaminarOrifice
                         SpoolMass, Tank, VolumeNode)
 from pvgraph import Circuit
 from pvgraph.analysis import linearize_circuit
+from pvgraph.analysis.linearize import LinearModel
+from pvgraph.errors import PvgraphError
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from test_compiler import BETA, K, Q, V  # noqa: E402
@@ -92,3 +95,100 @@ def test_pvg32_example_matches_nonlinear(tmp_path):
     lin, nl = res["dx_linear"][-1], res["dx_nonlinear"][-1]
     assert abs(nl) > 0 and abs(lin - nl) <= 0.2 * abs(nl)
     assert np.all(res["poles"].real < 0)  # a stable operating point
+
+
+# ---- python-control conveniences on LinearModel -------------------------------------------
+def _model(sys):
+    """A LinearModel holding a SISO python-control system ``u -> y``."""
+    import control
+    ss = control.ss(sys)
+    n = ss.nstates
+    return LinearModel(np.asarray(ss.A), np.asarray(ss.B), np.asarray(ss.C), np.asarray(ss.D),
+                       [f"x{k}" for k in range(n)], ["u"], ["y"])
+
+
+def test_margins_known_loop():
+    import control
+    lm = _model(control.tf([1.0], [1.0, 3.0, 2.0, 0.0]))   # 1 / (s (s+1) (s+2))
+    m = lm.margins("y", "u")
+    assert m.gain == pytest.approx(6.0, rel=1e-4)         # |G(j sqrt 2)| = 1/6
+    assert m.gain_db == pytest.approx(20.0 * math.log10(6.0), rel=1e-4)
+    assert m.w_gain == pytest.approx(math.sqrt(2.0), rel=1e-4)
+    w = math.sqrt([r.real for r in np.roots([1.0, 5.0, 4.0, -1.0])
+                   if abs(r.imag) < 1e-12 and r.real > 0][0])
+    assert m.w_phase == pytest.approx(w, rel=1e-4)
+    assert m.phase == pytest.approx(90.0 - math.degrees(math.atan(w) + math.atan(w / 2.0)),
+                                    rel=1e-4)
+
+
+@pytest.mark.parametrize("zeta", [0.2, 0.4, 0.7])
+def test_step_info_second_order_overshoot(zeta):
+    import control
+    wn = 50.0
+    lm = _model(control.tf([wn ** 2], [1.0, 2.0 * zeta * wn, wn ** 2]))
+    info = lm.step_info("y", "u", timepts=np.linspace(0.0, 1.0, 20001))  # 50 us steps
+    overshoot = 100.0 * math.exp(-zeta * math.pi / math.sqrt(1.0 - zeta ** 2))
+    assert info["Overshoot"] == pytest.approx(overshoot, rel=0.01)
+    assert info["PeakTime"] == pytest.approx(math.pi / (wn * math.sqrt(1.0 - zeta ** 2)),
+                                             rel=0.01)
+    assert info["SteadyStateValue"] == pytest.approx(1.0, rel=1e-9)
+
+
+def test_damping_of_spring_mass_damper():
+    lm = linearize_circuit(smd, {"F": 10.0}, ["mass.flange.x"])
+    wn, zeta, poles = lm.damping()
+    assert np.allclose(wn, math.sqrt(KS / M), rtol=1e-9)
+    assert np.allclose(zeta, D / (2.0 * math.sqrt(KS * M)), rtol=1e-9)
+    assert np.allclose(poles, lm.poles())
+
+
+def p_loop(u):
+    """r -> sum (r - y) -> gain k -> lags tau 1, 1/2, 1/3 -> y: plant 6/((s+1)(s+2)(s+3))."""
+    from components.signal import FirstOrderLag, Gain, Sum
+    c = Circuit("p_loop")
+    ref = c.add("ref", Constant(k=u["r"]))
+    err = c.add("err", Sum(k1=1.0, k2=-1.0))
+    gain = c.add("gain", Gain(k=u.get("k", 2.0)))
+    lags = [c.add(f"lag{i}", FirstOrderLag(tau=1.0 / i)) for i in (1, 2, 3)]
+    c.connect(ref.y, err.u1)
+    c.connect(err.y, gain.u)
+    c.connect(gain.y, lags[0].u)
+    c.connect(lags[0].y, lags[1].u)
+    c.connect(lags[1].y, lags[2].u)
+    c.connect(lags[2].y, err.u2)
+    return c
+
+
+def test_open_loop_of_a_circuit_with_its_own_controller():
+    closed = linearize_circuit(p_loop, {"r": 0.5}, ["lag3.y"])
+    # closed loop k P / (1 + k P), P(0) = 1, k = 2
+    assert closed.dc_gain()[0, 0] == pytest.approx(2.0 / 3.0, rel=1e-9)
+    opened = closed.open_loop("r", "lag3.y")
+    assert opened.dc_gain()[0, 0] == pytest.approx(2.0, rel=1e-9)
+    assert np.allclose(np.sort_complex(opened.poles()), [-3.0, -2.0, -1.0], rtol=1e-9)
+    # s^3 + 6 s^2 + 11 s + 6 at s = j sqrt(11) is -60: |k P| = 2 * 6 / 60, GM = 5
+    m = opened.margins("lag3.y", "r")
+    assert m.gain == pytest.approx(5.0, rel=1e-4)
+    assert m.w_gain == pytest.approx(math.sqrt(11.0), rel=1e-4)
+    back = opened.feedback("r", "lag3.y")
+    assert np.allclose(back.A, closed.A) and np.allclose(back.B, closed.B)
+    # at the critical gain the closed loop has poles +-j sqrt(11), as the root locus shows
+    crit = opened.feedback("r", "lag3.y", gain=m.gain)
+    assert np.max(crit.poles().real) == pytest.approx(0.0, abs=1e-6)
+    assert np.max(np.abs(crit.poles().imag)) == pytest.approx(math.sqrt(11.0), rel=1e-6)
+    gains, loci = opened.root_locus("lag3.y", "r", [m.gain])
+    assert np.max(loci[0].real) == pytest.approx(0.0, abs=1e-6)
+    # a lower gain in series: the circuit rebuilt with it linearises to the same model
+    rebuilt = linearize_circuit(p_loop, {"r": 0.5, "k": 1.0}, ["lag3.y"])
+    halved = opened.feedback("r", "lag3.y", gain=0.5)
+    assert np.allclose(np.sort_complex(halved.poles()), np.sort_complex(rebuilt.poles()),
+                       rtol=1e-7)
+    assert halved.open_loop("r", "lag3.y").margins("lag3.y", "r").gain == pytest.approx(
+        10.0, rel=1e-4)                                   # half the gain: twice the margin
+
+
+def test_feedback_refuses_an_algebraic_loop():
+    import control
+    lm = _model(control.tf([1.0, 0.0], [1.0, 1.0]))     # s / (s + 1): D = 1
+    with pytest.raises(PvgraphError, match="feedthrough"):
+        lm.open_loop("u", "y")

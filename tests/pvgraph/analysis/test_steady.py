@@ -75,3 +75,15 @@ def test_pvg32_rig_needs_continuation_from_rest():
     r = s.residual(0.0, op.y, op.yp)
     assert np.all(np.isfinite(r)) and op.residual_norm <= 1e-9
     assert op["pvg.pvb.main_spool.flange.x"] == pytest.approx(-3.46e-3, rel=0.02)
+
+
+def test_operating_point_gives_derived_outputs():
+    """``op[name]`` also reads outputs declared with ``v.observe`` (here the rig's L3 flow), which
+    must equal the laminar law K_L3 (Pf - Pb) at the same point."""
+    from circuits.pvg32.parameters import report_tuned
+    from circuits.rig import build_rig
+    p = report_tuned()
+    op = steady_state(build_rig(p, U_input=4.29).compile())
+    assert "load.L3.q" in op.system.observed
+    dp = op["load.f.port.p"] - op["load.b.port.p"]
+    assert op["load.L3.q"] == pytest.approx(p.rig.L3.laminar_small * dp, rel=1e-9)

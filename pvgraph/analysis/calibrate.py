@@ -1,0 +1,377 @@
+"""Parameter estimation: fit model parameters to measurements by weighted least squares.
+
+Given a model ``predict(theta) -> predictions`` (any callable: a steady state, a simulated
+trace, a closed-form law), measurements ``y`` and their standard deviations ``sigma``,
+:func:`calibrate` minimises ::
+
+    S(theta) = sum_i ((predict(theta)_i - y_i) / sigma_i)^2
+
+with :func:`scipy.optimize.least_squares` (trust-region reflective, bounds respected) and
+reports, at the optimum ``theta*`` with Jacobian ``J`` of the weighted residuals:
+
+- the covariance ``C = s^2 (J^T J)^-1`` with ``s^2 = S(theta*) / (m - n)`` (the sigmas are taken
+  as relative weights, as in :func:`scipy.optimize.curve_fit` with ``absolute_sigma=False``), or
+  ``C = (J^T J)^-1`` when ``absolute_sigma=True`` (the sigmas are true standard deviations);
+- standard errors ``sqrt(C_kk)``, two-sided confidence intervals ``theta*_k +- t_{m-n} sqrt(C_kk)``
+  from Student's t, and the correlation matrix;
+- identifiability: ``J^T J`` is inverted through its singular value decomposition; a direction
+  whose singular value is below ``rcond`` times the largest is *not identifiable from these
+  data*, and every parameter with a component along it gets an infinite interval and is named
+  in :attr:`CalibrationResult.unidentifiable`, instead of a confident-looking number.
+
+The optimiser works on scaled parameters ``z = theta / scale`` (``scale`` defaults to
+``|initial|``), so one finite-difference step ``diff_step`` is relative for every parameter.
+The model is called once per Jacobian column: it should be deterministic to much better than
+``diff_step`` (a steady state solved to tight tolerance is; a transient at ``rtol=1e-4`` is not).
+
+References
+----------
+Bates, D. M., Watts, D. G., *Nonlinear Regression Analysis and Its Applications*, Wiley 1988,
+ch. 2 (linear approximation inference regions).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+from ..errors import PvgraphError
+
+__all__ = ["FitParameter", "CalibrationResult", "CalibrationError", "calibrate"]
+
+RCOND = 1e-4          # relative singular value below which a direction is not identifiable
+DIFF_STEP = 1e-4      # forward-difference step of the search, in the scaled parameters
+COV_STEP = 1e-3       # central-difference step of the Jacobian used for inference
+
+
+class CalibrationError(PvgraphError):
+    """A calibration problem is set up wrongly, or its model cannot be evaluated."""
+
+
+@dataclass(frozen=True)
+class FitParameter:
+    """One parameter to estimate: its name, start value, bounds, scale and display unit.
+
+    ``display`` converts an SI value into the unit of ``unit`` for tables (e.g. ``to_lpm``).
+    """
+
+    name: str
+    initial: float
+    lower: float = -math.inf
+    upper: float = math.inf
+    scale: float | None = None
+    unit: str = ""
+    display: Callable[[float], float] | None = None
+
+    def __post_init__(self):
+        if not (math.isfinite(self.initial)):
+            raise CalibrationError(f"{self.name}: initial value {self.initial!r} is not finite")
+        if not self.lower < self.upper:
+            raise CalibrationError(f"{self.name}: lower bound {self.lower} is not below the "
+                                   f"upper bound {self.upper}")
+        if not self.lower <= self.initial <= self.upper:
+            raise CalibrationError(f"{self.name}: initial value {self.initial:g} lies outside "
+                                   f"its bounds [{self.lower:g}, {self.upper:g}]")
+        if self.scale is not None and not (self.scale > 0 and math.isfinite(self.scale)):
+            raise CalibrationError(f"{self.name}: scale must be positive, got {self.scale!r}")
+
+    @property
+    def unit_scale(self) -> float:
+        """The scale of the optimiser variable ``z = theta / unit_scale``."""
+        if self.scale is not None:
+            return self.scale
+        return abs(self.initial) if self.initial != 0.0 else 1.0
+
+    def shown(self, value: float) -> float:
+        return self.display(value) if self.display else value
+
+
+@dataclass
+class CalibrationResult:
+    """Estimates with confidence intervals, residuals and the fit's diagnostics (SI units)."""
+
+    parameters: list[FitParameter]
+    estimates: np.ndarray
+    std_errors: np.ndarray
+    ci_low: np.ndarray
+    ci_high: np.ndarray
+    covariance: np.ndarray
+    confidence: float
+    labels: list[str]
+    measured: np.ndarray
+    sigma: np.ndarray
+    predicted_initial: np.ndarray
+    predicted: np.ndarray
+    cost_initial: float
+    cost: float
+    dof: int
+    nfev: int
+    success: bool
+    message: str
+    unidentifiable: list[str] = field(default_factory=list)
+    singular_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    wall_time: float = 0.0
+
+    @property
+    def names(self) -> list[str]:
+        return [p.name for p in self.parameters]
+
+    @property
+    def residuals(self) -> np.ndarray:
+        """Predicted minus measured at the estimate (units of the data)."""
+        return self.predicted - self.measured
+
+    @property
+    def residuals_initial(self) -> np.ndarray:
+        return self.predicted_initial - self.measured
+
+    @property
+    def correlation(self) -> np.ndarray:
+        d = np.sqrt(np.diag(self.covariance))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self.covariance / np.outer(d, d)
+
+    @property
+    def rms_weighted(self) -> float:
+        """Root mean square of the weighted residuals ``(pred - y) / sigma`` at the estimate."""
+        return math.sqrt(2.0 * self.cost / max(len(self.measured), 1))
+
+    def __getitem__(self, name: str) -> float:
+        try:
+            return float(self.estimates[self.names.index(name)])
+        except ValueError:
+            raise KeyError(f"no fitted parameter {name!r}; fitted: {self.names}") from None
+
+    def interval(self, name: str) -> tuple[float, float]:
+        k = self.names.index(name)
+        return float(self.ci_low[k]), float(self.ci_high[k])
+
+    def table(self, reference: Mapping[str, float] | None = None,
+              reference_label: str = "reference") -> str:
+        """A plain-text table of the estimates (display units), optionally beside references."""
+        pct = f"{100 * self.confidence:.0f} % interval"
+        head = f"{'parameter':28s} {'unit':>10s} {'initial':>10s} {'estimate':>10s} {pct:>23s}"
+        if reference:
+            head += f" {reference_label:>10s}"
+        lines = [head, "-" * len(head)]
+        for k, p in enumerate(self.parameters):
+            lo, hi = self.ci_low[k], self.ci_high[k]
+            ci = (f"[{p.shown(lo):9.4g}, {p.shown(hi):9.4g}]" if np.isfinite(lo) and
+                  np.isfinite(hi) else "not identifiable")
+            row = (f"{p.name:28s} {p.unit:>10s} {p.shown(p.initial):10.4g} "
+                   f"{p.shown(self.estimates[k]):10.4g} {ci:>23s}")
+            if reference:
+                ref = reference.get(p.name)
+                row += f" {p.shown(ref):10.4g}" if ref is not None else f" {'-':>10s}"
+            lines.append(row)
+        lines.append(f"weighted residual rms {math.sqrt(2 * self.cost_initial / len(self.measured)):.3g}"
+                     f" -> {self.rms_weighted:.3g} over {len(self.measured)} data, "
+                     f"{self.dof} degrees of freedom, {self.nfev} model evaluations, "
+                     f"{self.wall_time:.1f} s")
+        if self.unidentifiable:
+            lines.append("not identifiable from these data: " + ", ".join(self.unidentifiable))
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (SI units)."""
+        def num(v):
+            v = float(v)
+            return v if math.isfinite(v) else None
+        return {
+            "parameters": [{"name": p.name, "unit": "SI", "initial": p.initial,
+                            "estimate": num(self.estimates[k]),
+                            "std_error": num(self.std_errors[k]),
+                            "ci_low": num(self.ci_low[k]), "ci_high": num(self.ci_high[k])}
+                           for k, p in enumerate(self.parameters)],
+            "confidence": self.confidence,
+            "unidentifiable": list(self.unidentifiable),
+            "correlation": [[num(v) for v in row] for row in self.correlation],
+            "data": [{"label": lab, "measured": num(m), "sigma": num(s),
+                      "predicted_initial": num(p0), "predicted": num(p)}
+                     for lab, m, s, p0, p in zip(self.labels, self.measured, self.sigma,
+                                                 self.predicted_initial, self.predicted)],
+            "cost_initial": self.cost_initial, "cost": self.cost, "dof": self.dof,
+            "nfev": self.nfev, "success": self.success, "message": self.message,
+        }
+
+
+def _as_parameters(parameters) -> list[FitParameter]:
+    if isinstance(parameters, Mapping):
+        out = []
+        for name, spec in parameters.items():
+            if isinstance(spec, FitParameter):
+                out.append(spec)
+            elif isinstance(spec, (int, float)):
+                out.append(FitParameter(name, float(spec)))
+            else:
+                initial, lower, upper = spec
+                out.append(FitParameter(name, float(initial), float(lower), float(upper)))
+        parameters = out
+    parameters = list(parameters)
+    if not parameters:
+        raise CalibrationError("no parameters to fit")
+    names = [p.name for p in parameters]
+    dupes = sorted({n for n in names if names.count(n) > 1})
+    if dupes:
+        raise CalibrationError(f"parameters listed twice: {dupes}")
+    return parameters
+
+
+def _central_jacobian(evaluate, z, f0, lo, hi, step):
+    """``d pred / dz`` by central differences (one-sided at a bound)."""
+    J = np.empty((f0.size, z.size))
+    for k in range(z.size):
+        h = step * max(1.0, abs(z[k]))
+        up, down = z.copy(), z.copy()
+        up[k] = min(z[k] + h, hi[k])
+        down[k] = max(z[k] - h, lo[k])
+        f_up = f0 if up[k] == z[k] else evaluate(up)
+        f_down = f0 if down[k] == z[k] else evaluate(down)
+        if f_up is None or f_down is None:
+            raise CalibrationError("the model fails next to the optimum; cannot estimate the "
+                                   "confidence intervals (try a smaller cov_step)")
+        J[:, k] = (f_up - f_down) / (up[k] - down[k])
+    return J
+
+
+def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[float],
+              parameters: Sequence[FitParameter] | Mapping, *, sigma=None,
+              labels: Sequence[str] | None = None, absolute_sigma: bool = False,
+              confidence: float = 0.95, diff_step: float = DIFF_STEP, max_nfev: int | None = None,
+              xtol: float = 1e-6, ftol: float = 1e-6, rcond: float = RCOND,
+              cov_step: float = COV_STEP,
+              progress: Callable[[int, float], None] | None = None) -> CalibrationResult:
+    """Fit ``parameters`` so that ``predict(theta)`` matches ``measured`` in weighted least squares.
+
+    Parameters
+    ----------
+    predict : callable
+        ``predict({name: value}) -> array`` of the same length as ``measured``. A prediction
+        that fails (raises :class:`~pvgraph.errors.PvgraphError` or returns non-finite values)
+        during the search is treated as a very poor fit, so the optimiser backs away from it;
+        failing at the initial values raises :class:`CalibrationError`.
+    measured : array
+        The data.
+    parameters : list of FitParameter, or mapping
+        ``{name: initial}`` or ``{name: (initial, lower, upper)}`` also accepted.
+    sigma : float or array, optional
+        Standard deviation of each datum (default 1). Weights are ``1 / sigma``.
+    labels : list of str, optional
+        A name per datum, for tables and for the messages of bad data.
+    absolute_sigma : bool
+        ``True``: the sigmas are the data's true standard deviations; ``False`` (default):
+        they are relative weights and the covariance is scaled by the reduced chi-square.
+    confidence : float
+        Level of the two-sided confidence intervals (default 0.95).
+    diff_step : float
+        Forward-difference step of the search Jacobian in the scaled parameters.
+    rcond, cov_step : float
+        Identifiability threshold on the singular values of the scaled, weighted Jacobian, and
+        the central-difference step used to compute that Jacobian at the optimum.
+    progress : callable, optional
+        ``progress(nfev, cost)`` after every model evaluation.
+
+    Returns
+    -------
+    CalibrationResult
+    """
+    from scipy import optimize, stats
+
+    params = _as_parameters(parameters)
+    y = np.asarray(measured, dtype=float).ravel()
+    m, n = y.size, len(params)
+    labels = list(labels) if labels is not None else [f"datum {i}" for i in range(m)]
+    if len(labels) != m:
+        raise CalibrationError(f"{len(labels)} labels for {m} measurements")
+    bad = [labels[i] for i in np.flatnonzero(~np.isfinite(y))]
+    if bad:
+        raise CalibrationError(f"measurements are not finite: {bad[:5]}")
+    s = np.broadcast_to(np.asarray(1.0 if sigma is None else sigma, dtype=float), (m,)).copy()
+    bad = [labels[i] for i in np.flatnonzero(~(s > 0) | ~np.isfinite(s))]
+    if bad:
+        raise CalibrationError(f"sigma must be positive and finite; not so for {bad[:5]}")
+    if m < n:
+        raise CalibrationError(f"{m} measurements cannot determine {n} parameters")
+    if not 0.0 < confidence < 1.0:
+        raise CalibrationError(f"confidence must lie in (0, 1), got {confidence}")
+
+    scale = np.array([p.unit_scale for p in params])
+    z0 = np.array([p.initial for p in params]) / scale
+    lo = np.array([p.lower for p in params]) / scale
+    hi = np.array([p.upper for p in params]) / scale
+    names = [p.name for p in params]
+    counter = {"nfev": 0}
+
+    def evaluate(z, *, strict=False):
+        theta = dict(zip(names, (z * scale).tolist()))
+        counter["nfev"] += 1
+        try:
+            pred = np.asarray(predict(theta), dtype=float).ravel()
+        except PvgraphError as exc:
+            if strict:
+                raise CalibrationError(f"the model fails at the initial parameters: {exc}") from exc
+            return None
+        if pred.size != m:
+            raise CalibrationError(f"predict returned {pred.size} values for {m} measurements")
+        if not np.all(np.isfinite(pred)):
+            if strict:
+                which = [labels[i] for i in np.flatnonzero(~np.isfinite(pred))][:5]
+                raise CalibrationError(f"the model gives non-finite predictions at the initial "
+                                       f"parameters for {which}")
+            return None
+        return pred
+
+    pred0 = evaluate(z0, strict=True)
+    r0 = (pred0 - y) / s
+    penalty = 1e3 * max(1.0, float(np.max(np.abs(r0))))
+
+    def fun(z):
+        pred = evaluate(z)
+        r = np.full(m, penalty) if pred is None else (pred - y) / s
+        if progress:
+            progress(counter["nfev"], 0.5 * float(r @ r))
+        return r
+
+    t0 = time.perf_counter()
+    res = optimize.least_squares(fun, z0, bounds=(lo, hi), method="trf", x_scale=1.0,
+                                 diff_step=diff_step, xtol=xtol, ftol=ftol, gtol=1e-10,
+                                 max_nfev=max_nfev)
+    theta = res.x * scale
+    pred = evaluate(res.x)
+    if pred is None:
+        raise CalibrationError(f"the model fails at the optimum {dict(zip(names, theta))}")
+    r = (pred - y) / s
+    cost = 0.5 * float(r @ r)
+    dof = m - n
+
+    # Inference uses a central-difference Jacobian at the optimum (truncation O(h^2)), not the
+    # optimiser's forward differences, so a rank-deficient direction shows as such.
+    Jz = _central_jacobian(evaluate, res.x, pred, lo, hi, cov_step) / s[:, None]
+    U, sv, Vt = np.linalg.svd(Jz, full_matrices=False)
+    keep = sv > rcond * (sv[0] if sv.size and sv[0] > 0 else 1.0)
+    inv = np.where(keep, 1.0 / np.where(keep, sv, 1.0) ** 2, 0.0)
+    cov = ((Vt.T * inv) @ Vt) * np.outer(scale, scale)       # physical units
+    weak = ((Vt[~keep] ** 2).sum(axis=0) > 1e-3) if np.any(~keep) else np.zeros(n, bool)
+    s2 = 2.0 * cost / dof if (dof > 0 and not absolute_sigma) else 1.0
+    cov = cov * s2
+    cov[weak, :] = np.inf
+    cov[:, weak] = np.inf
+    std = np.sqrt(np.diag(cov))
+    if dof > 0:
+        tq = float(stats.t.ppf(0.5 + confidence / 2.0, dof))
+    else:
+        tq = math.inf
+    half = tq * std
+    unident = [names[k] for k in np.flatnonzero(weak)]
+    wall = time.perf_counter() - t0
+    return CalibrationResult(
+        parameters=params, estimates=theta, std_errors=std, ci_low=theta - half,
+        ci_high=theta + half, covariance=cov, confidence=confidence, labels=labels,
+        measured=y, sigma=s, predicted_initial=pred0, predicted=pred,
+        cost_initial=0.5 * float(r0 @ r0), cost=cost, dof=dof, nfev=counter["nfev"],
+        success=bool(res.success), message=str(res.message), unidentifiable=unident,
+        singular_values=sv, wall_time=wall)

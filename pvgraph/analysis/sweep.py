@@ -1,0 +1,632 @@
+"""Parameter studies: run one function over many cases, in parallel, and keep every result.
+
+A sweep applies ``run(**params) -> {output name: float}`` to a list of *cases*, each a dict of
+parameter values with the same keys. ``run`` does whatever one case needs (build a circuit from
+the parameters, simulate it, reduce the solution to scalars), so a sweep works for any circuit
+or model::
+
+    def orifice_flow(A, dp):                      # module level: it is sent to other processes
+        system = build_bench(A, dp).compile()
+        return {"q": steady_state(system)["dut.a.q"]}
+
+    result = sweep(orifice_flow, grid({"A": [1e-6, 2e-6], "dp": [1e5, 2e5, 4e5]}),
+                   progress=True, out="orifice-study")
+    result.column("q")                            # numpy array in case order, NaN where failed
+
+Design
+------
+- **Failures are data.** Every exception raised by ``run`` (and an output that is not a dict
+  of scalars) is caught where the case runs and stored in its :class:`CaseResult`: status
+  ``"failed"``, the exception type, its message and the traceback text. The other cases go on.
+  A worker process that dies outright (killed, out of memory, a crash in compiled code) takes
+  the cases it shared a pool with down with it; those are rerun one per fresh process, so only
+  the case that kills its process is marked failed.
+- **Backends.** ``"process"`` (default): a local :class:`~concurrent.futures.ProcessPoolExecutor`;
+  ``run`` and the parameter values must pickle, so ``run`` is a module-level function or a
+  :func:`functools.partial` of one. ``"serial"``: the cases one after the other in this
+  process, for debugging (breakpoints and ``pdb`` work inside ``run``). ``"dask"``:
+  ``dask.distributed`` (an optional dependency, ``pip install "pvgraph[dask]"``) on a given
+  ``Client``, on a scheduler address (``"tcp://host:8786"``), or on a local cluster of
+  ``workers`` processes started for the sweep and closed after it. Every worker must be able to
+  import the modules ``run`` comes from.
+- **Order.** Cases finish in any order; the result holds them in case order, and the progress
+  callback ``progress(done, total, case_index)`` is called in this process as each finishes.
+- **Files.** :meth:`SweepResult.to_csv` and :meth:`SweepResult.to_json` write atomically (a
+  temporary file renamed over the target), so an interrupted write never leaves half a file;
+  ``sweep(..., out=folder)`` writes ``folder/sweep.csv`` and ``folder/sweep.json`` at the end.
+
+Cases
+-----
+:func:`grid` gives the cartesian product of value lists; :func:`random_sample` draws ``n``
+cases uniformly or by Latin hypercube from ranges ``(lo, hi)``, or log-uniformly from
+``("log", lo, hi)``.
+"""
+
+from __future__ import annotations
+
+import csv
+import difflib
+import itertools
+import json
+import math
+import numbers
+import os
+import pickle
+import time
+import traceback as _traceback
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
+
+import numpy as np
+
+from .._progress import ProgressBar
+from ..errors import PvgraphError
+
+__all__ = ["SweepError", "CaseResult", "SweepResult", "sweep", "grid", "random_sample",
+           "BACKENDS"]
+
+BACKENDS = ("process", "serial", "dask")
+SAMPLING_METHODS = ("uniform", "lhs")
+MAX_PROCESS_WORKERS = 61   # the largest pool ProcessPoolExecutor accepts on every platform
+OK, FAILED = "ok", "failed"
+#: CSV columns every sweep writes; no parameter or output may take these names
+RESERVED_COLUMNS = ("index", "status", "wall_time", "error_type", "error_message")
+CSV_NAME, JSON_NAME = "sweep.csv", "sweep.json"
+
+
+class SweepError(PvgraphError, ValueError):
+    """A sweep is set up wrongly: no cases, mismatched parameter names, an unknown backend."""
+
+
+# --------------------------------------------------------------------------------------------
+@dataclass
+class CaseResult:
+    """The record of one case: its parameters, outputs (SI floats) or error, and wall time."""
+
+    index: int
+    params: dict
+    outputs: dict = field(default_factory=dict)
+    status: str = OK
+    wall_time: float = 0.0
+    error_type: str | None = None
+    error_message: str | None = None
+    traceback: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.status == OK
+
+    @property
+    def error(self) -> str | None:
+        """``"Type: message"`` of a failed case, None for a successful one."""
+        return None if self.ok else f"{self.error_type}: {self.error_message}"
+
+    def to_dict(self) -> dict:
+        """A JSON-ready dict (non-finite floats become None)."""
+        err = None if self.ok else {"type": self.error_type, "message": self.error_message,
+                                    "traceback": self.traceback}
+        return {"index": self.index, "status": self.status,
+                "wall_time": _json_value(self.wall_time),
+                "params": {k: _json_value(v) for k, v in self.params.items()},
+                "outputs": {k: _json_value(v) for k, v in self.outputs.items()},
+                "error": err}
+
+
+def _scalar(name: str, value) -> float:
+    """One output value as a float; anything but a real scalar is an error naming the output."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]
+    if isinstance(value, (numbers.Real, np.bool_)):
+        return float(value)
+    raise SweepError(f"output {name!r} is {type(value).__name__} ({value!r:.60}); each output "
+                     f"of run() must be a real scalar")
+
+
+def _check_outputs(raw, params: Mapping) -> dict:
+    if not isinstance(raw, Mapping):
+        raise SweepError(f"run() returned {type(raw).__name__}; it must return a dict of "
+                         f"output name -> float")
+    out = {}
+    for name, value in raw.items():
+        if not isinstance(name, str):
+            raise SweepError(f"output name {name!r} is not a string")
+        if name in params or name in RESERVED_COLUMNS:
+            raise SweepError(f"output {name!r} has the name of a parameter or of a column every "
+                             f"sweep writes ({', '.join(RESERVED_COLUMNS)}); rename it")
+        out[name] = _scalar(name, value)
+    return out
+
+
+def _failure(index: int, params: Mapping, exc: BaseException, tb: str | None = None,
+             wall: float = 0.0) -> CaseResult:
+    return CaseResult(index, dict(params), {}, FAILED, wall, type(exc).__name__, str(exc),
+                      tb if tb is not None else "".join(_traceback.format_exception(exc)))
+
+
+def _run_case(run: Callable, index: int, params: Mapping) -> CaseResult:
+    """Run one case and record its outputs or its error (executed where the case runs)."""
+    t0 = time.perf_counter()
+    try:
+        outputs = _check_outputs(run(**params), params)
+    except Exception as exc:
+        return _failure(index, params, exc, _traceback.format_exc(), time.perf_counter() - t0)
+    return CaseResult(index, dict(params), outputs, OK, time.perf_counter() - t0)
+
+
+# --------------------------------------------------------------------------------------------
+class SweepResult:
+    """Every case of a sweep in case order, with column access and CSV / JSON export.
+
+    ``result[i]`` is the :class:`CaseResult` of case ``i``; ``result.ok`` and ``result.failed``
+    the successful and failed records; ``result.column(name)`` a parameter or output over all
+    cases as a numpy array (NaN for an output of a failed case).
+    """
+
+    def __init__(self, records: Sequence[CaseResult], param_names: Sequence[str], *,
+                 backend: str = "serial", wall_time: float = 0.0,
+                 units: Mapping[str, str] | None = None):
+        self.records = list(records)
+        self.param_names = list(param_names)
+        self.backend = backend
+        self.wall_time = float(wall_time)
+        self.units = dict(units or {})
+        names: dict[str, None] = {}
+        for r in self.records:
+            names.update(dict.fromkeys(r.outputs))
+        self.output_names = list(names)
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def __iter__(self) -> Iterator[CaseResult]:
+        return iter(self.records)
+
+    def __getitem__(self, index: int) -> CaseResult:
+        return self.records[index]
+
+    @property
+    def ok(self) -> list[CaseResult]:
+        """The successful cases, in case order."""
+        return [r for r in self.records if r.ok]
+
+    @property
+    def failed(self) -> list[CaseResult]:
+        """The failed cases, in case order."""
+        return [r for r in self.records if not r.ok]
+
+    def column(self, name: str) -> np.ndarray:
+        """A parameter, an output or ``"wall_time"`` over all cases, in case order.
+
+        Outputs are floats with NaN where a case failed (or did not return that output);
+        parameters keep their values (a float array when all are numbers).
+        """
+        if name in self.param_names:
+            values = [r.params[name] for r in self.records]
+            if all(isinstance(v, numbers.Real) for v in values):
+                return np.asarray(values, dtype=float)
+            return np.asarray(values, dtype=object)
+        if name in self.output_names:
+            return np.asarray([r.outputs.get(name, math.nan) if r.ok else math.nan
+                               for r in self.records], dtype=float)
+        if name == "wall_time":
+            return np.asarray([r.wall_time for r in self.records], dtype=float)
+        pool = self.param_names + self.output_names + ["wall_time"]
+        close = difflib.get_close_matches(name, pool, n=3)
+        hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
+        raise KeyError(f"no parameter or output named {name!r}{hint} The columns are: "
+                       f"{', '.join(pool)}")
+
+    def to_dict(self) -> dict:
+        """The whole sweep as a JSON-ready dict."""
+        return {"backend": self.backend, "wall_time": _json_value(self.wall_time),
+                "n_cases": len(self), "n_ok": len(self.ok), "n_failed": len(self.failed),
+                "param_names": self.param_names, "output_names": self.output_names,
+                "units": self.units, "cases": [r.to_dict() for r in self.records]}
+
+    def to_json(self, path) -> str:
+        """Write :meth:`to_dict` to ``path`` atomically (strict JSON: NaN is written as null)."""
+        from ..simulate import _atomic_write
+        data = self.to_dict()
+        _atomic_write(path, lambda f: json.dump(data, f, indent=1, allow_nan=False,
+                                                default=str))
+        return os.fspath(path)
+
+    def to_csv(self, path) -> str:
+        """Write one row per case to ``path`` atomically.
+
+        Columns: ``index, status, wall_time``, the parameters, the outputs (SI, full precision;
+        empty where a case failed), ``error_type, error_message``. Tracebacks are in the JSON.
+        """
+        from ..simulate import _atomic_write
+        header = (["index", "status", "wall_time"] + self.param_names + self.output_names
+                  + ["error_type", "error_message"])
+        rows = []
+        for r in self.records:
+            outs = [_csv_value(r.outputs[n]) if n in r.outputs else "" for n in self.output_names]
+            rows.append([r.index, r.status, _csv_value(r.wall_time)]
+                        + [_csv_value(r.params[n]) for n in self.param_names] + outs
+                        + [r.error_type or "", r.error_message or ""])
+
+        def write(f):
+            w = csv.writer(f)
+            w.writerow(header)
+            w.writerows(rows)
+        _atomic_write(path, write)
+        return os.fspath(path)
+
+    def save(self, folder) -> tuple[str, str]:
+        """Write ``folder/sweep.csv`` and ``folder/sweep.json``; returns both paths."""
+        folder = os.fspath(folder)
+        return (self.to_csv(os.path.join(folder, CSV_NAME)),
+                self.to_json(os.path.join(folder, JSON_NAME)))
+
+    def to_dataframe(self):
+        """The CSV table as a pandas DataFrame (pandas is optional and imported here)."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise SweepError("SweepResult.to_dataframe() needs pandas; install it with "
+                             "pip install pandas, or use to_csv() / column()") from None
+        rows = []
+        for r in self.records:
+            row = {"index": r.index, "status": r.status, "wall_time": r.wall_time, **r.params}
+            row.update({n: r.outputs.get(n, math.nan) for n in self.output_names})
+            row.update(error_type=r.error_type, error_message=r.error_message)
+            rows.append(row)
+        return pd.DataFrame(rows).set_index("index")
+
+    def __repr__(self):
+        return (f"<SweepResult: {len(self)} cases, {len(self.ok)} ok, {len(self.failed)} failed, "
+                f"backend {self.backend}, {self.wall_time:.1f} s>")
+
+
+def _json_value(v):
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
+
+def _csv_value(v):
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, float):
+        return repr(v)
+    return "" if v is None else v
+
+
+# --------------------------------------------------------------------------------------------
+def _check_cases(cases) -> list[dict]:
+    if isinstance(cases, Mapping):
+        raise SweepError("cases must be a list of dicts (one per case), not one dict; use "
+                         "grid({...}) for a cartesian product")
+    try:
+        cases = [c for c in cases]
+    except TypeError:
+        raise SweepError(f"cases must be a list of dicts, got {type(cases).__name__}") from None
+    if not cases:
+        raise SweepError("no cases to run: cases is empty")
+    for i, c in enumerate(cases):
+        if not isinstance(c, Mapping):
+            raise SweepError(f"case {i} is {type(c).__name__}, not a dict of parameter values")
+        bad = [k for k in c if not isinstance(k, str) or not k]
+        if bad:
+            raise SweepError(f"case {i}: parameter names must be non-empty strings (they are "
+                             f"passed as keyword arguments); got {bad}")
+    names = list(cases[0])
+    reserved = [k for k in names if k in RESERVED_COLUMNS]
+    if reserved:
+        raise SweepError(f"parameter name(s) {reserved} are reserved for the sweep's own "
+                         f"columns ({', '.join(RESERVED_COLUMNS)}); rename them")
+    for i, c in enumerate(cases[1:], start=1):
+        if set(c) != set(names):
+            missing = [k for k in names if k not in c]
+            extra = [k for k in c if k not in names]
+            raise SweepError(f"case {i} has different parameters from case 0: missing "
+                             f"{missing}, extra {extra}; every case must set the same names")
+    return [dict(c) for c in cases]
+
+
+def _default_workers(n_cases: int) -> int:
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cpus = os.cpu_count() or 1
+    return max(1, min(n_cases, cpus, MAX_PROCESS_WORKERS))
+
+
+def _check_picklable(run, cases) -> None:
+    try:
+        pickle.dumps(run)
+    except Exception as exc:
+        name = getattr(run, "__qualname__", repr(run))
+        raise SweepError(f"run ({name}) cannot be sent to worker processes ({exc}); define it "
+                         f"at module level (or use functools.partial of a module-level "
+                         f"function), or use backend='serial'") from None
+    for i, c in enumerate(cases):
+        try:
+            pickle.dumps(c)
+        except Exception as exc:
+            raise SweepError(f"case {i}: the parameter values cannot be sent to worker "
+                             f"processes ({exc}); use plain numbers and strings") from None
+
+
+def _progress_callback(progress, total: int):
+    if progress is None or progress is False:
+        return None
+    if progress is True:
+        bar = ProgressBar(total, "sweep")
+        return lambda done, n, index: bar.update(done, f"case {index}")
+    if callable(progress):
+        return progress
+    raise SweepError(f"progress must be None, True or a callable progress(done, total, "
+                     f"case_index), got {type(progress).__name__}")
+
+
+# --------------------------------------------------------------------------------------------
+def _run_serial(run, cases, report) -> None:
+    for i, c in enumerate(cases):
+        report(_run_case(run, i, c))
+
+
+def _run_isolated(run, index, params) -> CaseResult:
+    """One case in a fresh single-worker process pool (after a pool broke)."""
+    with ProcessPoolExecutor(max_workers=1) as pool:
+        try:
+            return pool.submit(_run_case, run, index, params).result()
+        except BrokenProcessPool as exc:
+            return _failure(index, params, BrokenProcessPool(
+                f"the worker process running case {index} died ({exc}); it was killed, ran "
+                f"out of memory or crashed in compiled code"))
+        except Exception as exc:
+            return _failure(index, params, exc)
+
+
+def _run_process(run, cases, workers, report) -> None:
+    broken = []
+    pool = ProcessPoolExecutor(max_workers=workers)
+    try:
+        futures = {pool.submit(_run_case, run, i, c): i for i, c in enumerate(cases)}
+        for fut in as_completed(futures):
+            i = futures[fut]
+            try:
+                report(fut.result())
+            except BrokenProcessPool:
+                broken.append(i)
+            except Exception as exc:  # the result could not be sent back
+                report(_failure(i, cases[i], exc))
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown()
+    for i in sorted(broken):
+        report(_run_isolated(run, i, cases[i]))
+
+
+def _run_dask(run, cases, workers, client, report) -> None:
+    try:
+        import distributed
+    except ImportError:
+        raise SweepError('backend "dask" needs dask.distributed; install it with '
+                         'pip install "pvgraph[dask]"') from None
+    owned = []
+    if client is None:
+        cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1,
+                                           processes=True, dashboard_address=None)
+        owned.append(cluster)
+        client = distributed.Client(cluster, set_as_default=False)
+        owned.insert(0, client)
+    elif isinstance(client, str):
+        address = client
+        try:
+            client = distributed.Client(address, set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise SweepError(f"cannot connect to the Dask scheduler at {address!r}: "
+                             f"{exc}") from None
+        owned.append(client)
+    elif not isinstance(client, distributed.Client):
+        raise SweepError(f"client must be a distributed.Client or a scheduler address string, "
+                         f"got {type(client).__name__}")
+    try:
+        futures = [client.submit(_run_case, run, i, c, pure=False) for i, c in enumerate(cases)]
+        index = {f.key: i for i, f in enumerate(futures)}
+        for fut in distributed.as_completed(futures, loop=client.loop):
+            i = index[fut.key]
+            try:
+                report(fut.result())
+            except Exception as exc:  # the worker died (KilledWorker), or (de)serialisation
+                report(_failure(i, cases[i], exc))
+            fut.release()
+    finally:
+        for obj in owned:
+            obj.close()
+
+
+def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, Any]], *,
+          backend: str = "process", workers: int | None = None, client=None,
+          progress: bool | Callable[[int, int, int], None] | None = None, out=None,
+          units: Mapping[str, str] | None = None) -> SweepResult:
+    """Run ``run(**case)`` for every case and collect the outputs, in case order.
+
+    Parameters
+    ----------
+    run : callable
+        ``run(**params) -> dict[str, float]``: builds and simulates one case and returns its
+        scalar outputs. For ``backend="process"`` it must pickle: a module-level function or a
+        :func:`functools.partial` of one.
+    cases : iterable of dict
+        Parameter values per case, all with the same names (see :func:`grid`,
+        :func:`random_sample`). Names that are not Python identifiers (dotted paths such as
+        ``"rig.pump_flow"``) reach a ``run(**params)`` that collects keyword arguments.
+    backend : {"process", "serial", "dask"}
+        Local process pool, this process one case after the other, or ``dask.distributed``.
+    workers : int, optional
+        Processes of the pool or of the local Dask cluster; default the CPUs available to
+        this process (at most one per case). Ignored when a Dask ``client`` is given.
+    client : distributed.Client or str, optional
+        ``backend="dask"`` only: a connected client, or a scheduler address to connect to
+        (``"tcp://10.0.0.5:8786"``). Default: a local cluster started for this sweep.
+    progress : True or callable, optional
+        ``progress(done, total, case_index)`` after each case, or True for a text bar on
+        stderr (drawn only when stderr is a terminal).
+    out : path, optional
+        A folder; ``sweep.csv`` and ``sweep.json`` are written there (atomically) at the end.
+    units : dict, optional
+        Unit of each output (``{"q": "m^3/s"}``), kept as metadata in the result and its JSON.
+
+    Returns
+    -------
+    SweepResult
+        Every case, failed ones included (status ``"failed"``, error type, message and
+        traceback); a failing case never stops the others.
+
+    Raises
+    ------
+    SweepError
+        ``run`` is not callable or cannot be pickled, ``cases`` is empty or its cases set
+        different parameters, the backend or the worker count is invalid.
+    """
+    if not callable(run):
+        raise SweepError(f"run must be a callable run(**params) -> dict, got "
+                         f"{type(run).__name__}")
+    if backend not in BACKENDS:
+        raise SweepError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+    cases = _check_cases(cases)
+    if client is not None and backend != "dask":
+        raise SweepError(f"client= is only used by backend='dask' (backend is {backend!r})")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                or workers < 1):
+        raise SweepError(f"workers must be a positive integer, got {workers!r}")
+    workers = workers if workers is not None else _default_workers(len(cases))
+    if backend == "process":
+        workers = min(workers, len(cases), MAX_PROCESS_WORKERS)
+        _check_picklable(run, cases)
+    tick = _progress_callback(progress, len(cases))
+
+    records: list[CaseResult | None] = [None] * len(cases)
+    done = 0
+
+    def report(res: CaseResult) -> None:
+        nonlocal done
+        records[res.index] = res
+        done += 1
+        if tick is not None:
+            tick(done, len(cases), res.index)
+
+    t0 = time.perf_counter()
+    if backend == "serial":
+        _run_serial(run, cases, report)
+    elif backend == "process":
+        _run_process(run, cases, workers, report)
+    else:
+        _run_dask(run, cases, workers, client, report)
+    result = SweepResult(records, list(cases[0]), backend=backend,
+                         wall_time=time.perf_counter() - t0, units=units)
+    if out is not None:
+        result.save(out)
+    return result
+
+
+# --------------------------------------------------------------------------------------------
+def _plain(v):
+    return v.item() if isinstance(v, np.generic) else v
+
+
+def grid(values: Mapping[str, Iterable]) -> list[dict]:
+    """The cartesian product of value lists, the last name varying fastest.
+
+    ``grid({"A": [1e-6, 2e-6], "dp": [1e5, 2e5]})`` gives 4 cases:
+    ``{"A": 1e-6, "dp": 1e5}, {"A": 1e-6, "dp": 2e5}, {"A": 2e-6, "dp": 1e5}, ...``.
+    """
+    if not isinstance(values, Mapping) or not values:
+        raise SweepError("grid() takes a non-empty dict of parameter name -> list of values")
+    axes = {}
+    for name, vals in values.items():
+        if isinstance(vals, (str, bytes)) or not isinstance(vals, Iterable):
+            raise SweepError(f"grid: the values of {name!r} must be a list (got "
+                             f"{type(vals).__name__} {vals!r}); write [{vals!r}] for one value")
+        vals = [_plain(v) for v in vals]
+        if not vals:
+            raise SweepError(f"grid: parameter {name!r} has no values")
+        axes[name] = vals
+    names = list(axes)
+    return [dict(zip(names, combo)) for combo in itertools.product(*axes.values())]
+
+
+def _range_spec(name, spec):
+    """``(kind, lo, hi)`` with kind "linear" or "log", or None for a constant."""
+    if not isinstance(spec, (tuple, list)):
+        return None
+    if len(spec) == 3 and spec[0] == "log":
+        kind, lo, hi = "log", spec[1], spec[2]
+    elif len(spec) == 2:
+        kind, lo, hi = "linear", spec[0], spec[1]
+    else:
+        raise SweepError(f"random_sample: {name!r} must be (lo, hi), ('log', lo, hi) or a "
+                         f"constant, got {spec!r}")
+    if not all(isinstance(v, numbers.Real) and math.isfinite(v) for v in (lo, hi)) or \
+            not lo < hi:
+        raise SweepError(f"random_sample: the range of {name!r} needs finite lo < hi, got "
+                         f"{spec!r}")
+    if kind == "log" and lo <= 0:
+        raise SweepError(f"random_sample: the log range of {name!r} needs lo > 0, got {spec!r}")
+    return kind, float(lo), float(hi)
+
+
+def _latin_hypercube(d: int, n: int, rng: np.random.Generator) -> np.ndarray:
+    from scipy.stats import qmc
+    try:
+        sampler = qmc.LatinHypercube(d, rng=rng)
+    except TypeError:  # scipy < 1.15 names the generator "seed"
+        sampler = qmc.LatinHypercube(d, seed=rng)
+    return sampler.random(n)
+
+
+def random_sample(ranges: Mapping[str, Any], n: int, *, seed=None,
+                  method: str = "lhs") -> list[dict]:
+    """``n`` random cases from parameter ranges.
+
+    Parameters
+    ----------
+    ranges : dict
+        Per parameter: ``(lo, hi)`` uniform in [lo, hi]; ``("log", lo, hi)`` log-uniform
+        (uniform in log(value), lo > 0); anything else (a number, a string) a constant
+        given to every case.
+    n : int
+        Number of cases.
+    seed : int or numpy Generator, optional
+        Same seed, same cases.
+    method : {"lhs", "uniform"}
+        ``"lhs"``: Latin hypercube (:class:`scipy.stats.qmc.LatinHypercube`): split each range
+        into ``n`` equal bins (equal in log for log ranges) and every bin holds exactly one
+        case. ``"uniform"``: independent uniform draws.
+    """
+    if not isinstance(ranges, Mapping) or not ranges:
+        raise SweepError("random_sample() takes a non-empty dict of parameter name -> range")
+    if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1:
+        raise SweepError(f"random_sample: n must be a positive integer, got {n!r}")
+    if method not in SAMPLING_METHODS:
+        raise SweepError(f"random_sample: unknown method {method!r}; choose one of "
+                         f"{', '.join(SAMPLING_METHODS)}")
+    specs = {name: _range_spec(name, spec) for name, spec in ranges.items()}
+    ranged = [name for name, s in specs.items() if s is not None]
+    rng = np.random.default_rng(seed)
+    if not ranged:
+        u = np.zeros((int(n), 0))
+    elif method == "lhs":
+        u = _latin_hypercube(len(ranged), int(n), rng)
+    else:
+        u = rng.random((int(n), len(ranged)))
+    columns = {}
+    for k, name in enumerate(ranged):
+        kind, lo, hi = specs[name]
+        if kind == "log":
+            x = np.exp(math.log(lo) + u[:, k] * (math.log(hi) - math.log(lo)))
+        else:
+            x = lo + u[:, k] * (hi - lo)
+        columns[name] = np.clip(x, lo, hi)
+    return [{name: (float(columns[name][i]) if specs[name] is not None else _plain(spec))
+             for name, spec in ranges.items()} for i in range(int(n))]
