@@ -20,7 +20,7 @@ from __future__ import annotations
 import re
 
 from .component import Component, Port, PortRef
-from .errors import CircuitError
+from .errors import CircuitError, ConnectionError_
 
 __all__ = ["Circuit"]
 
@@ -68,6 +68,13 @@ class Circuit:
             raise CircuitError(f"circuit {self.path!r}: connect() needs at least two ports, "
                                f"got {len(ports)}")
         refs = tuple(self._resolve(p) for p in ports)
+        domains = {r.port.domain.name for r in refs}
+        if len(domains) > 1:
+            desc = ", ".join(f"{r.path()} ({r.port.domain.name})" for r in refs)
+            raise ConnectionError_(
+                f"circuit {self.path!r}: incompatible domains joined in one node: {desc}. A node "
+                f"joins ports of one domain only; a hydraulic port meets a mechanical one through "
+                f"a component that converts (e.g. PistonChamber or Cylinder).")
         self._connections.append(refs)
 
     def expose(self, name: str, inner, description: str = "") -> PortRef:

@@ -14,6 +14,7 @@ __all__ = [
     "StructureError",
     "InitializationError",
     "SolverError",
+    "PlausibilityWarning",
 ]
 
 
@@ -50,3 +51,7 @@ class SolverError(PvgraphError):
         self.t = t
         self.h = h
         self.culprits = list(culprits or [])
+
+
+class PlausibilityWarning(UserWarning):
+    """A result is numerically fine but physically implausible (e.g. a pressure of 1e6 bar)."""

@@ -6,12 +6,13 @@ import csv
 import math
 import os
 import tempfile
+import warnings
 from typing import Iterable
 
 import numpy as np
 
 from .circuit import Circuit
-from .errors import PvgraphError
+from .errors import PlausibilityWarning, PvgraphError
 from .system import System
 
 __all__ = ["simulate", "Solution"]
@@ -103,6 +104,11 @@ class Solution:
                 f"{self.t[-1]:g} s, {len(self.events)} events>")
 
 
+#: [Pa] above this a gauge pressure is taken as a modelling error (10 000 bar; hydraulic
+#: components are rated to a few hundred bar)
+PRESSURE_LIMIT = 1e9
+
+
 def _write_csv(f, header, t, cols):
     w = csv.writer(f)
     w.writerow(header)
@@ -186,5 +192,38 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         res = solve_dae_sundials(system.residual, (t_start, t_end), y_init, yp_init, **kwargs)
     if not res.success:
         raise PvgraphError(f"{system.name}: simulation stopped early: {res.message}")
-    return Solution(system, res.t, res.y, res.yp, events=res.events, stats=res.stats,
-                    mode_log=system.mode_log, solver=solver)
+    sol = Solution(system, res.t, res.y, res.yp, events=res.events, stats=res.stats,
+                   mode_log=system.mode_log, solver=solver)
+    _check_pressures(sol)
+    return sol
+
+
+def _check_pressures(sol: Solution) -> None:
+    """Warn when a pressure leaves the physical range: the circuit, not the solver, is wrong."""
+    system = sol.system
+    worst = []
+    for j, (name, unit) in enumerate(zip(system.names, system.units)):
+        if unit != "Pa" or sol.y.shape[0] == 0:
+            continue
+        col = np.abs(sol.y[:, j])
+        k = int(np.argmax(col))
+        if not np.isfinite(col[k]) or col[k] > PRESSURE_LIMIT:
+            first = int(np.argmax(~np.isfinite(col) | (col > PRESSURE_LIMIT)))
+            worst.append((float(col[k]), name, float(sol.t[first])))
+    if worst:
+        worst.sort(reverse=True)
+        same = {}
+        for alias, (coef, target, off) in system.aliases.items():
+            if target is not None and coef == 1.0 and off == 0.0:
+                same.setdefault(target, []).append(alias)
+
+        def node(n):
+            others = sorted(same.get(n, []))[:3]
+            return f"{n} (= {', '.join(others)})" if others else n
+        listed = "; ".join(f"{node(n)} reaches {v / 1e5:.3g} bar (beyond {PRESSURE_LIMIT / 1e5:.0f} "
+                           f"bar from t = {t:.4g} s)" for v, n, t in worst[:3])
+        warnings.warn(PlausibilityWarning(
+            f"{system.name}: implausible pressure: {listed}. A flow source or pump feeding a "
+            f"closed valve or a dead end with no leakage and no relief builds pressure without "
+            f"bound; add a relief valve (CheckValve to tank), a leakage area or an outlet."),
+            stacklevel=3)
