@@ -17,7 +17,7 @@ import numpy as np  # noqa: E402
 from .units import to_bar, to_lpm, to_mm  # noqa: E402
 
 __all__ = ["plot_solution", "plot_flow_vs_voltage", "plot_step_traces", "draw_circuit",
-           "plot_bode", "plot_step_response"]
+           "plot_bode", "plot_step_response", "plot_opening_areas"]
 
 _SCALES = {"Pa": (to_bar, "bar"), "m^3/s": (to_lpm, "L/min"), "m": (to_mm, "mm")}
 
@@ -190,6 +190,23 @@ def plot_step_response(curves, path, *, ylabel="", title="Step response"):
         ax.plot(t, y, label=lab)
     ax.set_xlabel("time [s]")
     ax.set_ylabel(ylabel)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title)
+    return _save(fig, path)
+
+
+def plot_opening_areas(tables, path, *, title="Opening areas"):
+    """Opening area [mm^2] against spool position [mm], one line per table.
+
+    ``tables`` holds objects with ``name``, ``x`` [m] and ``area`` [m^2] (e.g.
+    :class:`circuits.pvg32.tables.AreaTable`); the lines carry the tables' names.
+    """
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for tab in tables:
+        ax.plot(np.asarray(tab.x) * 1e3, np.asarray(tab.area) * 1e6, label=tab.name)
+    ax.set_xlabel("spool position [mm]")
+    ax.set_ylabel("opening area [mm^2]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     ax.set_title(title)

@@ -40,7 +40,7 @@ from pvgraph import Circuit
 from . import tables
 from .parameters import PVG32Params, report_tuned
 
-__all__ = ["build_pvp", "build_pvb", "build_pve", "build_pvg32"]
+__all__ = ["build_pvp", "build_pvb", "build_pve", "build_pvg32", "opening_areas"]
 
 # The LS pick-up from the work ports: an edge of the main spool that connects the fed port to
 # the LS channel once the metering edge opens. Its size is not in the report, which takes
@@ -108,9 +108,7 @@ def build_pvp(p: PVG32Params | None = None) -> Circuit:
                                              v_eps=FRICTION_V_EPS))
     stop = c.add("stop", EndStop(x_min=0.0, x_max=pv.stroke_max, eps=STOP_ROUNDING))
     a3 = c.add("A3", VariableOrifice(opens="positive", theta=pv.flow_angle, **_fluid(p),
-                                     **_table(tables.pvp_tank_area(
-                                         pv.tank_area_dead_band, pv.tank_area_full_stroke,
-                                         pv.tank_area_max))))
+                                     **_table(opening_areas(p)["A3"])))
     v3 = c.add("V3", PistonChamber(A=pv.spool_area, V0=pv.spring_chamber_volume, side=-1,
                                    beta=beta))
     a6 = c.add("A6", Orifice(A=pv.ls_orifice_area, **_fluid(p)))
@@ -135,6 +133,7 @@ def build_pvp(p: PVG32Params | None = None) -> Circuit:
 def _build_compensator(c: Circuit, p: PVG32Params):
     """The PVB compensator spool (report 4.3, eq. 4.30-4.65) inside circuit ``c``."""
     k, beta = p.compensator, p.fluid.bulk_modulus
+    areas = opening_areas(p)
     spool = c.add("comp_spool", SpoolMass(m=k.spool_mass))
     spring = c.add("comp_spring", TwoStageSpring(k1=k.spring_rate_1, k2=k.spring_rate_2,
                                                  x_b=k.second_stage_start, F0=k.spring_preload))
@@ -144,10 +143,9 @@ def _build_compensator(c: Circuit, p: PVG32Params):
     stop = c.add("comp_stop", EndStop(x_min=0.0, x_max=0.9 * k.stroke_max,
                                           eps=STOP_ROUNDING))
     a1 = c.add("A1", VariableOrifice(opens="negative", theta=k.closing_flow_angle, **_fluid(p),
-                                     **_table(tables.compensator_closing_area())))
+                                     **_table(areas["A1"])))
     a2 = c.add("A2", VariableOrifice(opens="positive", theta=k.opening_flow_angle, **_fluid(p),
-                                     **_table(tables.compensator_opening_area(
-                                         k.opening_diameter))))
+                                     **_table(areas["A2"])))
     a4 = c.add("A4", Orifice(A=k.inlet_orifice_area, **_fluid(p)))
     v1 = c.add("V1", PistonChamber(A=k.spool_area, V0=k.pressure_chamber_volume, side=1,
                                    beta=beta))
@@ -185,6 +183,19 @@ def main_spool_opening(p: PVG32Params) -> tables.AreaTable:
         position_scale=A_H_FIT_POSITION_SCALE)
 
 
+def opening_areas(p: PVG32Params | None = None) -> dict[str, tables.AreaTable]:
+    """The opening-area tables the model's spool edges use, by report symbol."""
+    p = p or report_tuned()
+    pv, k = p.pvp, p.compensator
+    return {
+        "A3": tables.pvp_tank_area(pv.tank_area_dead_band, pv.tank_area_full_stroke,
+                                   pv.tank_area_max),
+        "A1": tables.compensator_closing_area(),
+        "A2": tables.compensator_opening_area(k.opening_diameter),
+        "A_H": main_spool_opening(p),
+    }
+
+
 def build_pvb(p: PVG32Params | None = None) -> Circuit:
     """PVB module: compensator spool (4.3) and main spool (4.4) with its four metering edges.
 
@@ -204,7 +215,7 @@ def build_pvb(p: PVG32Params | None = None) -> Circuit:
                                                   v_eps=FRICTION_V_EPS))
     stop = c.add("main_stop", EndStop(x_min=-m.stroke_max, x_max=m.stroke_max,
                                           eps=STOP_ROUNDING))
-    a_h = main_spool_opening(p)
+    a_h = opening_areas(p)["A_H"]
     edge = dict(theta=m.flow_angle, **_fluid(p))
     pos = _table(a_h, lambda x: x > 0.0)
     neg = _table(a_h, lambda x: x < 0.0)
