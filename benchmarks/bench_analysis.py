@@ -7,10 +7,10 @@ What is measured, and why
    each sweep) and ``"dask"`` (a ``LocalCluster`` of 2 worker processes with 1 thread each):
 
    - *steady*: the rig's steady state at a PVE voltage from a grid (build + compile the rig,
-     ``steady_state``), about 0.15 s per case -- what a parameter study of operating points
+     ``steady_state``), about 0.14 s per case -- what a parameter study of operating points
      costs;
    - *scenario*: ``run_scenario`` of solenoid-step test 9 (8 s settle + 2 s after the step, as
-     ``pvgraph validate`` / ``pvgraph sweep`` run it) at a voltage from a grid, about 0.35 s.
+     ``pvgraph validate`` / ``pvgraph sweep`` run it) at a voltage from a grid, about 0.2 s.
 
    The Dask cluster's start-up is timed apart from the sweeps. On each fresh cluster two sweeps
    run: the first ("cold") pays for the workers importing pvgraph and numpy/scipy and warming
@@ -31,13 +31,16 @@ What is measured, and why
    quantities; the times show why ``calibrate_rig`` uses it. One full ``calibrate_rig()``
    (default fit, two weighting passes, workers=2) is timed once, with its number of model
    evaluations.
-3. **Peak memory.** Peak resident set size of the *steady* sweep run in a fresh interpreter
-   per backend (``resource.getrusage``: the parent, and the largest of its worker processes),
-   beside an interpreter that only imports and builds the cases.
+3. **Peak memory.** Peak resident set size (VmHWM) of the *steady* sweep run in a fresh
+   interpreter per backend: the parent process, and the largest of its worker processes (each
+   case reports the peak of the process it ran in), beside an interpreter that only imports
+   and builds the cases. Pool workers are forked, so their RSS includes the pages they share
+   copy-on-write with the parent; Dask workers are fresh interpreters.
 
-Times are medians over ``--repeats`` rounds; in each round the backends run one after the other
-(interleaved), so slow drifts of the machine load hit all of them alike. Ratios are from the same
-run.
+Times are medians over ``--repeats`` rounds (default 5); in each round the backends run one
+after the other (interleaved), so slow drifts of the machine load hit all of them alike. Ratios
+are from the same run. Other processes on a 2-core machine slow the parallel backends but not
+the serial one, so the CPU that other processes used during the rounds is reported too.
 
 Run: ``python benchmarks/bench_analysis.py`` (about 5 min on 2 cores);
 ``python benchmarks/bench_analysis.py --quick`` for a smoke run (4 cases, 1 round, no
@@ -105,7 +108,58 @@ def med(values) -> float:
     return statistics.median(values)
 
 
+class OtherLoad:
+    """CPU used by processes other than this one and its children while a block runs [cores].
+
+    The machine's busy time (/proc/stat) minus this process tree's CPU time (``os.times``;
+    worker processes count once they have been reaped, i.e. after their pool or cluster
+    closed), over the wall time. Other jobs on a 2-core machine slow the parallel backends and
+    not the serial one, so every round reports it. NaN where /proc/stat is unavailable.
+    """
+
+    def __init__(self):
+        self.samples: list[float] = []
+
+    @staticmethod
+    def _busy() -> float:
+        try:
+            with open("/proc/stat") as f:
+                v = [int(x) for x in f.readline().split()[1:]]
+        except OSError:
+            return float("nan")
+        # user nice system idle iowait irq softirq steal ...
+        return (v[0] + v[1] + v[2] + v[5] + v[6]) / os.sysconf("SC_CLK_TCK")
+
+    def __enter__(self):
+        self.t0, self.b0, self.c0 = time.perf_counter(), self._busy(), sum(os.times()[:4])
+        return self
+
+    def __exit__(self, *exc):
+        wall = time.perf_counter() - self.t0
+        own = sum(os.times()[:4]) - self.c0
+        self.samples.append(max(0.0, (self._busy() - self.b0 - own) / wall))
+
+    def summary(self) -> str:
+        return (f"other processes' CPU load during the rounds: median {med(self.samples):.2f}, "
+                f"max {max(self.samples):.2f} cores")
+
+
+def vm_hwm_mb() -> float:
+    """Peak resident set size of this process [MB] (VmHWM: reset at exec, unlike ru_maxrss)."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
 def quiet_dask():
+    # workers read this when they import distributed: no "failed heartbeat" traceback from a
+    # worker racing the scheduler's shutdown (a failed case still fails check())
+    os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "critical")
     for name in ("distributed", "distributed.worker", "distributed.nanny", "distributed.scheduler",
                  "distributed.core", "distributed.http.proxy"):
         logging.getLogger(name).setLevel(logging.ERROR)
@@ -138,35 +192,37 @@ def bench_sweeps(job: str, n: int, repeats: int) -> dict:
     t = {k: [] for k in ("serial", "process", "dask_start", "dask_cold", "dask_warm",
                          "dask_close", "dask_all")}
     inner = {k: [] for k in ("serial", "process", "dask_cold", "dask_warm")}
+    load = OtherLoad()
     for _ in range(repeats):
-        ref = sweep(run, cases, backend="serial")
-        check(ref)
-        t["serial"].append(ref.wall_time)
-        inner["serial"].append(med(ref.column("wall_time")))
+        with load:
+            ref = sweep(run, cases, backend="serial")
+            check(ref)
+            t["serial"].append(ref.wall_time)
+            inner["serial"].append(med(ref.column("wall_time")))
 
-        res = sweep(run, cases, backend="process", workers=WORKERS)
-        check(res, ref)
-        t["process"].append(res.wall_time)
-        inner["process"].append(med(res.column("wall_time")))
+            res = sweep(run, cases, backend="process", workers=WORKERS)
+            check(res, ref)
+            t["process"].append(res.wall_time)
+            inner["process"].append(med(res.column("wall_time")))
 
-        t0 = time.perf_counter()
-        cluster, client = start_cluster()
-        t["dask_start"].append(time.perf_counter() - t0)
-        try:
-            for key in ("dask_cold", "dask_warm"):
-                res = sweep(run, cases, backend="dask", client=client)
-                check(res, ref)
-                t[key].append(res.wall_time)
-                inner[key].append(med(res.column("wall_time")))
-        finally:
             t0 = time.perf_counter()
-            client.close()
-            cluster.close()
-            t["dask_close"].append(time.perf_counter() - t0)
-        # what sweep(backend="dask", workers=2) without a client costs: start, one sweep, close
-        t["dask_all"].append(t["dask_start"][-1] + t["dask_cold"][-1] + t["dask_close"][-1])
+            cluster, client = start_cluster()
+            t["dask_start"].append(time.perf_counter() - t0)
+            try:
+                for key in ("dask_cold", "dask_warm"):
+                    res = sweep(run, cases, backend="dask", client=client)
+                    check(res, ref)
+                    t[key].append(res.wall_time)
+                    inner[key].append(med(res.column("wall_time")))
+            finally:
+                t0 = time.perf_counter()
+                client.close()
+                cluster.close()
+                t["dask_close"].append(time.perf_counter() - t0)
+            # what sweep(backend="dask", workers=2) without a client costs: start, one sweep, close
+            t["dask_all"].append(t["dask_start"][-1] + t["dask_cold"][-1] + t["dask_close"][-1])
     return {"job": job, "n": n, "t": {k: med(v) for k, v in t.items()},
-            "inner": {k: med(v) for k, v in inner.items()}}
+            "inner": {k: med(v) for k, v in inner.items()}, "load": load.summary()}
 
 
 def sweep_table(results: list[dict]) -> str:
@@ -192,6 +248,8 @@ def sweep_table(results: list[dict]) -> str:
     rows.append("")
     rows.append(f"Dask LocalCluster (2 processes x 1 thread) start-up, median: {starts}; "
                 f"close: {closes} (per job, in the order above).")
+    for r in results:
+        rows.append(f"{r['job']} sweeps: {r['load']}.")
     return "\n".join(rows)
 
 
@@ -293,16 +351,21 @@ def bench_calibration(repeats: int, full_fit: bool) -> str:
 
 # --------------------------------------------------------------------------------------------
 # 3. peak memory (each backend in a fresh interpreter)
+def steady_job_mem(U_input: float) -> dict:
+    """steady_job, and the peak RSS of the process it ran in."""
+    return {**steady_job(U_input), "vm_hwm": vm_hwm_mb()}
+
+
 def memory_probe(backend: str, n: int) -> None:
     cases = cases_for("steady", n)
+    worker = float("nan")
     if backend != "none":
         if backend == "dask":
             quiet_dask()
-        res = sweep(steady_job, cases, backend=backend, workers=WORKERS)
+        res = sweep(steady_job_mem, cases, backend=backend, workers=WORKERS)
         check(res)
-    self_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    child_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    print(json.dumps({"self": self_kb / 1024, "children": child_kb / 1024}))
+        worker = float(np.max(res.column("vm_hwm")))
+    print(json.dumps({"self": vm_hwm_mb(), "worker": worker}))
 
 
 def bench_memory(n: int) -> str:
@@ -314,7 +377,7 @@ def bench_memory(n: int) -> str:
         out = subprocess.run([sys.executable, __file__, "--memory-probe", backend, "--cases",
                               str(n)], capture_output=True, text=True, check=True)
         r = json.loads(out.stdout.strip().splitlines()[-1])
-        child = "-" if backend in ("none", "serial") else f"{r['children']:.0f}"
+        child = "-" if backend in ("none", "serial") else f"{r['worker']:.0f}"
         rows.append(f"| {label} | {r['self']:.0f} | {child} |")
     return "\n".join(rows)
 
@@ -324,7 +387,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="smoke run: 4 cases, 1 round, no "
                     "calibrate_rig, no memory probe")
-    ap.add_argument("--repeats", type=int, default=3, help="rounds (default %(default)s)")
+    ap.add_argument("--repeats", type=int, default=5, help="rounds (default %(default)s)")
     ap.add_argument("--cases", type=int, default=16, help="cases per sweep (default %(default)s)")
     ap.add_argument("--parts", default="sweeps,calibration,memory",
                     help="comma-separated parts to run (default %(default)s)")

@@ -104,8 +104,11 @@ def run_scenario(scenario: Scenario | str, params: PVG32Params | None = None, *,
     # settled: within 0.5 s of the step (or of the end of the settling run) the load pressure
     # stays within 0.5 bar or 2 % of its final value
     late = sol.t >= (t_ref + 0.5 if step else settle - 1.0)
-    deviation = float(np.max(np.abs(pf[late] - pf[-1])))
-    settled = deviation <= max(0.5e5, 0.02 * abs(pf[-1]))
+    if np.any(late):
+        deviation = float(np.max(np.abs(pf[late] - pf[-1])))
+        settled = deviation <= max(0.5e5, 0.02 * abs(pf[-1]))
+    else:                                # too short a run to tell: not shown to be settled
+        deviation, settled = math.nan, False
     return ScenarioResult(scenario.name, simulated, margins, sol.t[window] - t_ref,
                           dp_l3[window], settled, deviation, wall, sol.stats.get("nsteps", 0))
 

@@ -103,7 +103,6 @@ def test_sweep_with_a_failing_case_keeps_the_others_and_exits_1(tmp_path, capsys
     (["--param", "U_input=4,5", "--random", "3"], "not a list"),
     (["--random", "3"], "at least one --param"),
     (["--scenario", "test-99"], "unknown scenario(s) ['test-99']"),
-    (["--scenario", "test-9", "--after", "0.2"], "--after must be > 0.5 s"),
     (["--scheduler", "tcp://127.0.0.1:1", "--backend", "process"], "needs --backend dask"),
 ])
 def test_sweep_bad_arguments_exit_2_naming_the_fault(args, message, capsys, tmp_path):

@@ -114,3 +114,9 @@ def test_all_19_scenarios_meet_the_flow_and_margin_targets():
     assert ok == total == 19
     ok, total, _ = t["pump margin 15 +- 2 bar and main spool drop 5 +- 1 bar (unsaturated)"]
     assert ok == total
+
+
+def test_a_run_too_short_to_judge_is_not_called_settled():
+    from circuits.validation import run_scenario
+    r = run_scenario("test-2", settle=0.3, after=0.2)
+    assert r.settled is False and r.settle_deviation != r.settle_deviation   # NaN
