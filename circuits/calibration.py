@@ -49,7 +49,8 @@ from pvgraph.errors import ParameterError
 from pvgraph.units import lpm, lpm_per_bar, to_bar, to_lpm
 
 from .lab_data import FLOW_ACCURACY, PRESSURE_ACCURACY
-from .pvg32.parameters import PVG32Params, report_initial, report_tuned, with_values
+from .pvg32.parameters import (PVG32Params, parameter_field, report_initial, report_tuned,
+                               with_values)
 from .rig import build_rig, laminar_load
 from .scenarios import Scenario, all_scenarios
 
@@ -105,13 +106,6 @@ TABLE_4_14 = {
 }
 
 
-def _get(p: PVG32Params, path: str) -> float:
-    value = p
-    for part in path.split("."):
-        value = getattr(value, part)
-    return value
-
-
 def fit_parameter(path: str, start: PVG32Params) -> FitParameter:
     """The :class:`FitParameter` for ``path``, starting from its value in ``start``."""
     if path not in FIT_PARAMETERS:
@@ -121,7 +115,7 @@ def fit_parameter(path: str, start: PVG32Params) -> FitParameter:
         raise ParameterError(f"{path!r} cannot be calibrated.{hint} Calibratable: "
                              f"{', '.join(FIT_PARAMETERS)}")
     lo, hi, unit, shown = FIT_PARAMETERS[path]
-    initial = _get(start, path)
+    initial, _ = parameter_field(start, path)
     if initial is None:
         raise ParameterError(f"{path} is None in the start parameters; give it a value first")
     return FitParameter(path, float(min(max(initial, lo), hi)), lo, hi, unit=unit, display=shown)

@@ -212,14 +212,10 @@ TABLE_OUTPUTS = ("Q_total", "Pf", "Pm", "Pb", "pump_margin", "main_spool_x")
 
 def _sweepable(params) -> dict:
     """``{name: (preset value or None, description)}`` of every parameter a sweep can vary."""
-    from circuits.pvg32.parameters import parameter_paths
+    from circuits.pvg32.parameters import parameter_field, parameter_paths
     out = {name: (None, desc) for name, desc in SCENARIO_PARAMS.items()}
     for path in parameter_paths(params):
-        *groups, leaf = path.split(".")
-        model = params
-        for g in groups:
-            model = getattr(model, g)
-        out[path] = (getattr(model, leaf), type(model).model_fields[leaf].description or "")
+        out[path] = parameter_field(params, path)
     return out
 
 

@@ -44,6 +44,7 @@ __all__ = [
     "report_initial",
     "report_tuned",
     "parameter_paths",
+    "parameter_field",
     "with_values",
 ]
 
@@ -593,6 +594,15 @@ def parameter_paths(p: PVG32Params | None = None) -> list[str]:
                 out.append(prefix + name)
     walk(p or PVG32Params(), "")
     return out
+
+
+def parameter_field(p: PVG32Params, path: str) -> tuple[float, str]:
+    """``(value, description)`` of the dotted-path parameter ``path`` in ``p``."""
+    *groups, leaf = path.split(".")
+    model = p
+    for g in groups:
+        model = getattr(model, g)
+    return getattr(model, leaf), type(model).model_fields[leaf].description or ""
 
 
 def with_values(p: PVG32Params, updates: dict[str, float]) -> PVG32Params:

@@ -341,17 +341,17 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
                                  diff_step=diff_step, xtol=xtol, ftol=ftol, gtol=1e-10,
                                  max_nfev=max_nfev)
     theta = res.x * scale
-    pred = evaluate(res.x)
-    if pred is None:
+    r = np.asarray(res.fun, dtype=float)       # the weighted residuals at the optimum
+    if np.all(r == penalty):
         raise CalibrationError(f"the model fails at the optimum {dict(zip(names, theta))}")
-    r = (pred - y) / s
+    pred = r * s + y
     cost = 0.5 * float(r @ r)
     dof = m - n
 
     # Inference uses a central-difference Jacobian at the optimum (truncation O(h^2)), not the
     # optimiser's forward differences, so a rank-deficient direction shows as such.
     Jz = _central_jacobian(evaluate, res.x, pred, lo, hi, cov_step) / s[:, None]
-    U, sv, Vt = np.linalg.svd(Jz, full_matrices=False)
+    _, sv, Vt = np.linalg.svd(Jz, full_matrices=False)
     keep = sv > rcond * (sv[0] if sv.size and sv[0] > 0 else 1.0)
     inv = np.where(keep, 1.0 / np.where(keep, sv, 1.0) ** 2, 0.0)
     cov = ((Vt.T * inv) @ Vt) * np.outer(scale, scale)       # physical units
