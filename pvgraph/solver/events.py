@@ -53,6 +53,18 @@ class Event:
     action: Optional[Callable] = None
     name: str = ""
 
+    def apply(self, t: float, y: np.ndarray, yp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Run the action at the event; the ``(y, yp)`` to restart from (copies)."""
+        out = self.action(t, y.copy(), yp.copy()) if self.action is not None else None
+        if out is None:
+            return y, yp
+        y_new = np.array(out[0], dtype=float).ravel()
+        yp_new = np.array(out[1], dtype=float).ravel()
+        if y_new.shape != y.shape or yp_new.shape != y.shape:
+            raise ValueError(f"the action of event {self.name!r} returned arrays of shapes "
+                             f"{y_new.shape}, {yp_new.shape}; expected {y.shape}")
+        return y_new, yp_new
+
 
 def normalize_events(events):
     """Turn Events and scipy-style callables (``.terminal``, ``.direction``) into Events."""

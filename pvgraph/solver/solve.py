@@ -281,13 +281,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             if ev.terminal:
                 message = f"A terminal event ({ev.name!r}) occurred at t = {te:.9g}."
                 break
-            out = ev.action(te, ye.copy(), ype.copy())
-            if out is not None:
-                ye = np.array(out[0], dtype=float).ravel()
-                ype = np.array(out[1], dtype=float).ravel()
-                if ye.shape != (n,) or ype.shape != (n,):
-                    raise ValueError(f"the action of event {ev.name!r} returned arrays of "
-                                     f"shapes {ye.shape}, {ype.shape}; expected ({n},)")
+            ye, ype = ev.apply(te, ye, ype)
             try:
                 ye, ype = initialise(te, ye, ype, restart_mode)
             except InitializationError as exc:

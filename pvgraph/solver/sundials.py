@@ -173,10 +173,7 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
         if ev.terminal:
             message = f"A terminal event ({ev.name!r}) occurred at t = {te:.9g}."
             break
-        out = ev.action(te, ye.copy(), ype.copy())
-        if out is not None:
-            ye = np.array(out[0], dtype=float).ravel()
-            ype = np.array(out[1], dtype=float).ravel()
+        ye, ype = ev.apply(te, ye, ype)
         t_start, y, yp = te, ye, ype
         mode = calc_initial if calc_initial is not None else "algebraic"
         if t_end - t_start <= 1e-12 * max(1.0, abs(t_end)):

@@ -134,3 +134,15 @@ def test_tank_fills_then_pump_switches_off():
     np.testing.assert_allclose(res.y[:, 1], K_OUT * res.y[:, 0], atol=1e-9)
     # L' after the switch is -q_out / A: the derivative was reinitialised
     assert res.yp[-1, 0] == pytest.approx(-K_OUT * level(9.0) / AREA, abs=1e-7)
+
+
+@pytest.mark.parametrize("backend", ["pvgraph", "ida"])
+def test_an_action_returning_the_wrong_shape_is_named(backend):
+    """Both backends apply actions through Event.apply, so both refuse a malformed restart."""
+    from pvgraph.solver import solve_dae_sundials
+    solver = solve_dae if backend == "pvgraph" else solve_dae_sundials
+    broken = Event(lambda t, y, yp: y[0], direction=-1, name="ground",
+                   action=lambda t, y, yp: (y[:1], yp))
+    with pytest.raises(ValueError, match=r"action of event 'ground' returned arrays of shapes "
+                                         r"\(1,\), \(2,\); expected \(2,\)"):
+        solver(ball, (0.0, 2.0), [H0, 0.0], [0.0, -G], events=[broken], rtol=1e-6, atol=1e-8)
