@@ -484,12 +484,11 @@ def cmd_linearize(args) -> int:
           f"{n_shown} dominant poles:")
     print(f"  {'real [1/s]':>12s} {'imag [1/s]':>12s} {'wn [rad/s]':>11s} {'fn [Hz]':>9s} "
           f"{'zeta':>7s}")
-    records = []
-    for s_ in poles:
-        wn = float(abs(s_))
-        zeta = float(-s_.real / wn) if wn > 0 else 1.0
-        records.append({"real": float(s_.real), "imag": float(s_.imag),
-                        "natural_frequency": wn, "damping_ratio": zeta})
+    wns, zetas, _ = lm.damping()
+    records = [{"real": float(s_.real), "imag": float(s_.imag), "natural_frequency": float(wn),
+                # a pole at the origin: an integrator, reported as critically damped
+                "damping_ratio": float(zeta) if wn > 0 else 1.0}
+               for s_, wn, zeta in zip(poles, wns, zetas)]
     for r in records[:n_shown]:
         print(f"  {r['real']:12.5g} {r['imag']:+12.5g} {r['natural_frequency']:11.5g} "
               f"{r['natural_frequency'] / (2 * math.pi):9.4g} {r['damping_ratio']:7.3f}")

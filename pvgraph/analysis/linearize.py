@@ -16,9 +16,8 @@ circuit only through a comparator ``e = input - output`` (the PVE's set point an
 say), the loop is opened exactly in the linear model: with ``x' = A x + b e`` and
 ``e = r - c x`` the closed loop has ``A - b c``, so the open loop is ``A + b c``
 (:meth:`LinearModel.open_loop`); :meth:`LinearModel.feedback` closes it again with any gain.
-Margins, step metrics, damping and root loci are thin wrappers over python-control
-(``control.stability_margins``, ``control.step_info``, ``control.damp``,
-``control.root_locus_map``).
+Margins, step metrics and root loci are thin wrappers over python-control
+(``control.stability_margins``, ``control.step_info``, ``control.root_locus_map``).
 
 Inputs
 ------
@@ -156,15 +155,14 @@ class LinearModel:
         return control.step_info(self.siso(output, input), **options)
 
     def damping(self):
-        """``(wn, zeta, poles)``: natural frequency [rad/s] and damping ratio of each pole
-        (``control.damp``), sorted by decreasing real part like :meth:`poles`."""
-        import control
-        n = self.A.shape[0]
+        """``(wn, zeta, poles)``: natural frequency ``|p|`` [rad/s] and damping ratio
+        ``-Re p / |p|`` of each pole (as ``control.damp``; NaN for a pole at 0), sorted by
+        decreasing real part like :meth:`poles`."""
+        p = self.poles()
+        wn = np.abs(p)
         with np.errstate(invalid="ignore", divide="ignore"):
-            wn, zeta, p = control.damp(control.ss(self.A, np.zeros((n, 1)), np.zeros((1, n)),
-                                                  0.0), doprint=False)
-        order = np.argsort(-np.asarray(p).real, kind="stable")
-        return np.asarray(wn)[order], np.asarray(zeta)[order], np.asarray(p)[order]
+            zeta = -p.real / wn
+        return wn, zeta, p
 
     def open_loop(self, input, output) -> "LinearModel":
         """The model with the comparator ``e = input - output`` removed: ``input`` then drives
