@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -154,25 +153,52 @@ def _config(s: Scenario) -> tuple:
     return (s.U_input, s.orifice_L1 or "small", s.orifice_L3, s.l2_open_finally)
 
 
+def _rig_circuit(p: PVG32Params, cfg: tuple):
+    U, L1, L3, l2 = cfg
+    load = laminar_load(p, L1=L1, L3=L3, l2_open=l2, t_switch=None)
+    return build_rig(p, load=load, U_input=U)
+
+
+_OUTPUTS = {"Q_total": ("load.L2.q", "load.L3.q"), "Q_branch": ("load.L2.q",),
+            "Pf": ("load.f.port.p",), "Pm": ("load.m.port.p",), "Pb": ("load.b.port.p",)}
+
+
+def _values(op) -> dict:
+    q2, q3 = op["load.L2.q"], op["load.L3.q"]
+    return {"Q_total": to_lpm(q2 + q3), "Q_branch": to_lpm(q2),
+            "Pf": to_bar(op["load.f.port.p"]), "Pm": to_bar(op["load.m.port.p"]),
+            "Pb": to_bar(op["load.b.port.p"])}
+
+
+def _display_gain(quantity: str) -> float:
+    return to_lpm(1.0) if quantity.startswith("Q") else to_bar(1.0)
+
+
 def _solve_config(args):
     """Steady values of one rig configuration; returns (values in bar/(L/min), y)."""
-    p, (U, L1, L3, l2), y0 = args
-    load = laminar_load(p, L1=L1, L3=L3, l2_open=l2, t_switch=None)
-    system = build_rig(p, load=load, U_input=U).compile()
+    p, cfg, y0 = args
+    system = _rig_circuit(p, cfg).compile()
     start = y0 if y0 is not None and len(y0) == system.n else None
     op = steady_state(system, y0=start, tol=STEADY_TOL)
-    q2, q3 = op["load.L2.q"], op["load.L3.q"]
-    values = {"Q_total": to_lpm(q2 + q3), "Q_branch": to_lpm(q2), "Pf": to_bar(op["load.f.port.p"]),
-              "Pm": to_bar(op["load.m.port.p"]), "Pb": to_bar(op["load.b.port.p"])}
-    return values, op.y
+    return _values(op), op.y
 
 
 class RigSteadyModel:
     """``predict(theta)`` for :func:`calibrate`: the steady states of the scenarios' rigs.
 
-    Parameters not fitted are taken from ``base``. With ``workers > 1`` the configurations are
-    solved on a process pool that lives as long as the model (use it as a context manager).
+    Parameters not fitted are taken from ``base``. Each rig configuration is compiled once; an
+    evaluation builds the rig with the new values (milliseconds), reads its runtime parameters
+    into the compiled system (:meth:`pvgraph.System.params_from`) and solves the steady state.
+    A configuration is compiled again only if a fitted parameter changes its structure.
+    :meth:`jacobian` gives d predict / d theta from steady-state sensitivities: one
+    factorisation of the steady Jacobian per configuration, with the parameter derivative
+    dF/dp of the compiled system. ``workers`` is accepted for compatibility; the compiled
+    model runs in this process.
     """
+
+    #: relative step of the (cheap, exact for linear maps) derivative of the rig's component
+    #: parameters with respect to the fitted PVG 32 parameters
+    MAP_STEP = 1e-6
 
     def __init__(self, base: PVG32Params, data: list[Datum], *, workers: int = 1):
         from .scenarios import get_scenario
@@ -181,37 +207,163 @@ class RigSteadyModel:
         self.configs = sorted({_config(s) for s in self.scenarios.values()}, key=str)
         self.warm: dict[tuple, np.ndarray] = {}
         self.workers = workers
-        self._pool = None
         self.evaluations = 0
+        self.compilations = 0
+        self._compiled: list = []   # compiled systems, one per structure met
+        self._last = None   # (theta items, {cfg: OperatingPoint})
+        self._maps: dict = {}
 
     def __enter__(self):
-        if self.workers > 1:
-            self._pool = ProcessPoolExecutor(max_workers=self.workers)
         return self
 
     def __exit__(self, *exc):
-        if self._pool is not None:
-            self._pool.shutdown()
-            self._pool = None
+        return None
 
     def params(self, theta: dict) -> PVG32Params:
         return with_values(self.base, theta)
 
+    def _system(self, cfg, circuit):
+        """A compiled system of ``circuit``'s structure, carrying its parameter values.
+
+        The configurations differ in runtime parameters (input voltage, load constants) and in
+        L2's state: two structures, two compilations for every rig configuration.
+        """
+        for compiled in self._compiled:
+            try:
+                values = compiled.params_from(circuit)
+            except ParameterError:
+                continue   # another structure
+            return compiled.with_params(values)
+        compiled = circuit.compile()
+        self.compilations += 1
+        self._compiled.append(compiled)
+        return compiled
+
+    def _operating_points(self, theta: dict) -> dict:
+        key = tuple(sorted(theta.items()))
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]
+        p = self.params(theta)
+        ops = {}
+        for cfg in self.configs:
+            system = self._system(cfg, _rig_circuit(p, cfg))
+            y0 = self.warm.get(cfg)
+            start = y0 if y0 is not None and len(y0) == system.n else None
+            op = steady_state(system, y0=start, tol=STEADY_TOL)
+            self.warm[cfg] = op.y
+            ops[cfg] = op
+        self._last = (key, ops)
+        return ops
+
     def steady(self, p: PVG32Params) -> dict:
-        jobs = [(p, cfg, self.warm.get(cfg)) for cfg in self.configs]
-        results = list(self._pool.map(_solve_config, jobs)) if self._pool else \
-            [_solve_config(j) for j in jobs]
+        """Steady values of every configuration at the parameters ``p``."""
         out = {}
-        for cfg, (values, y) in zip(self.configs, results):
-            self.warm[cfg] = y
-            out[cfg] = values
+        for cfg in self.configs:
+            system = self._system(cfg, _rig_circuit(p, cfg))
+            y0 = self.warm.get(cfg)
+            start = y0 if y0 is not None and len(y0) == system.n else None
+            op = steady_state(system, y0=start, tol=STEADY_TOL)
+            self.warm[cfg] = op.y
+            out[cfg] = _values(op)
         return out
 
     def __call__(self, theta: dict) -> np.ndarray:
         self.evaluations += 1
-        by_cfg = self.steady(self.params(theta))
+        ops = self._operating_points(theta)
+        by_cfg = {cfg: _values(op) for cfg, op in ops.items()}
         return np.array([by_cfg[_config(self.scenarios[d.scenario])][d.quantity]
                          for d in self.data])
+
+    def jacobian(self, theta: dict) -> np.ndarray:
+        """d predict / d theta at ``theta`` (display units per SI unit of each parameter)."""
+        ops = self._operating_points(theta)
+        names = list(theta)
+        p = self.params(theta)
+        rows = {}
+        for cfg, op in ops.items():
+            rows[cfg] = self._config_jacobian(cfg, op, p, theta, names)
+        J = np.empty((len(self.data), len(names)))
+        for i, d in enumerate(self.data):
+            J[i] = rows[_config(self.scenarios[d.scenario])][d.quantity]
+        return J
+
+    def _parameter_map(self, cfg, compiled, theta, names):
+        """How the compiled system's parameters move with theta: per fitted parameter either
+        ``("scalar", {name: d value / d theta})`` or ``("table", up values, down values)``.
+
+        From differences of the rig build, which is cheap and exact for the linear maps most
+        parameters have. The input voltage does not depend on theta, so configurations that
+        differ in it alone share one map.
+        """
+        key = (tuple(sorted(theta.items())), cfg[1:], id(compiled))
+        if key in self._maps:
+            return self._maps[key]
+        base = compiled.parameters
+
+        def full(values, nm):
+            return values.get(nm, base[nm].value)
+
+        p = self.params(theta)
+        here = compiled.params_from(_rig_circuit(p, cfg))
+        out = []
+        for name in names:
+            h = self.MAP_STEP * max(abs(theta[name]), 1e-300)
+            there = compiled.params_from(_rig_circuit(self.params({**theta, name:
+                                                                   theta[name] + h}), cfg))
+            changed = {nm for nm in set(here) | set(there)
+                       if full(there, nm) != full(here, nm)}
+            if all(isinstance(base[nm].value, float) for nm in changed):
+                out.append(("scalar", {nm: (full(there, nm) - full(here, nm)) / h
+                                       for nm in changed if not nm.startswith("U_input.")}))
+                continue
+            back = compiled.params_from(_rig_circuit(self.params({**theta, name:
+                                                                  theta[name] - h}), cfg))
+            out.append(("table", there, back, h))
+        if any(k[0] != key[0] for k in self._maps):
+            self._maps = {}   # only the current theta is worth keeping
+        self._maps[key] = out
+        return out
+
+    def _config_jacobian(self, cfg, op, p, theta, names) -> dict:
+        """{quantity: d value / d theta} of one configuration."""
+        system = op.system
+        compiled = next(c for c in self._compiled if c._lazy is system._lazy)
+        outputs = sorted({o for outs in _OUTPUTS.values() for o in outs})
+        dF = np.zeros((system.n, len(names)))
+        dout = np.zeros((len(outputs), len(names)))
+        scalar_cols: dict[str, np.ndarray] = {}
+        key = (tuple(sorted(theta.items())), cfg[1:], id(compiled))
+        maps = self._maps.get(key) or self._parameter_map(cfg, compiled, theta, names)
+        for k, (name, entry) in enumerate(zip(names, maps)):
+            if entry[0] == "scalar":
+                for nm, slope in entry[1].items():
+                    scalar_cols.setdefault(nm, np.zeros(len(names)))[k] = slope
+                continue
+            _, there, back, h = entry
+            U = {"U_input.k": system.parameters["U_input.k"].value}
+            # a table changes with this parameter: central differences of the residual and the
+            # outputs at the fixed steady state (no solve involved)
+            up = compiled.with_params({**there, **U})
+            down = compiled.with_params({**back, **U})
+            dF[:, k] = (up.residual(op.t, op.y, op.yp)
+                        - down.residual(op.t, op.y, op.yp)) / (2 * h)
+            op_up = type(op)(op.y, op.yp, up, op.t)
+            op_down = type(op)(op.y, op.yp, down, op.t)
+            dout[:, k] = [(op_up[o] - op_down[o]) / (2 * h) for o in outputs]
+        if scalar_cols:
+            pnames = list(scalar_cols)
+            D = np.array([scalar_cols[nm] for nm in pnames])          # (n_p, n_theta)
+            dF += system.parameter_jacobian(op.t, op.y, op.yp, pnames) @ D
+            for j, o in enumerate(outputs):
+                _, gp = system.output_gradient(o, op.t, op.y, op.yp, pnames)
+                dout[j] += gp @ D
+        S = op.solve_linear(-dF)                                      # dy/dtheta
+        for j, o in enumerate(outputs):
+            gy, _ = system.output_gradient(o, op.t, op.y, op.yp, [])
+            dout[j] += gy @ S
+        by_name = dict(zip(outputs, dout))
+        return {q: _display_gain(q) * sum(by_name[o] for o in outs)
+                for q, outs in _OUTPUTS.items()}
 
 
 def calibrate_rig(fit=DEFAULT_FIT, *, start: PVG32Params | None = None,

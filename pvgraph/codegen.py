@@ -48,7 +48,7 @@ def generate(name: str, roots: list[Expr], *, flavour: str = "scalar",
     for node in order:
         if node.op == "const":
             sig = ("const", node.value)
-        elif node.op in ("y", "yp", "mode", "time", "sym", "der", "cj"):
+        elif node.op in ("y", "yp", "mode", "time", "sym", "der", "cj", "param"):
             sig = (node.op, node.value)
         elif node.op in ("interp", "interp_d"):
             sig = (node.op, id(node.value), key_of[id(node.args[0])])
@@ -82,6 +82,9 @@ def generate(name: str, roots: list[Expr], *, flavour: str = "scalar",
         if op in ("y", "yp", "mode"):
             text[k] = f"{'d' if op == 'mode' else op}[{node.value}]"
             continue
+        if op == "param":
+            text[k] = f"P[{node.value}]"
+            continue
         if op == "time":
             text[k] = "t"
             continue
@@ -102,7 +105,9 @@ def generate(name: str, roots: list[Expr], *, flavour: str = "scalar",
                 s = f"_np.where({a[0]}, {a[1]}, {a[2]})"
         elif op in ("interp", "interp_d"):
             tab = node.value
-            if id(tab) not in table_names:
+            if tab.slot is not None:  # a runtime table: it lives in the parameter vector
+                table_names[id(tab)] = f"P[{tab.slot}]"
+            elif id(tab) not in table_names:
                 table_names[id(tab)] = f"_tab{len(tables)}"
                 tables.append(tab)
             method = {("interp", "scalar"): "value", ("interp_d", "scalar"): "slope",

@@ -21,6 +21,7 @@ alias elimination, each volume contributes its own flow unknown, and the DAE sta
 
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass
 
 import networkx as nx
@@ -81,9 +82,13 @@ def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True):
     mode_names: list[str] = []
     mode_start: list[float] = []
 
+    registry: dict = {}   # parameter name -> ParameterInfo, in the order first read
+    trace = E.ParameterTrace({})
     for path, comp in leaves:
-        _declare_variables(path, comp, infos)
-        residuals, v = comp.trace(path)
+        _declare_variables(path, comp, infos, registry)
+        trace.where = f"{type(comp).__name__}.equations of {path!r}"
+        with trace:
+            residuals, v = comp.trace(path, registry)
         for k, r in enumerate(residuals):
             equations.append(_Equation(r, path, f"{path} equation {k + 1} "
                                                 f"({type(comp).__name__})"))
@@ -98,13 +103,21 @@ def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True):
     equations.extend(_connection_equations(circuit, leaves, infos))
     _check_symbols(equations, infos, set(mode_names))
 
-    subs: dict[str, tuple[float, str | None, float]] = {}
+    for name, info in registry.items():
+        trace.values.setdefault(name, info.value)
+        info.structural = trace.structural.get(name, "")
+
+    subs: dict[str, tuple] = {}
     if eliminate_aliases:
-        equations = _eliminate_aliases(equations, infos, subs)
+        equations = _eliminate_aliases(equations, infos, subs, trace.values)
 
     from .system import build_system
-    return build_system(circuit.name, equations, infos, subs, observed, events, mode_names,
-                        mode_start)
+    system = build_system(circuit.name, equations, infos, subs, observed, events, mode_names,
+                          mode_start, parameters=registry, tables=trace.tables)
+    system._circuit = circuit
+    system._components = dict(leaves)
+    system._models = {path: comp.params for path, comp in leaves}
+    return system
 
 
 # 1. flatten ---------------------------------------------------------------------------------
@@ -135,8 +148,8 @@ def _rel_path(root: Circuit, owner) -> str:
 
 # 2. connection sets -------------------------------------------------------------------------
 
-def _declare_variables(path, comp, infos):
-    starts = comp.start_values()
+def _declare_variables(path, comp, infos, registry):
+    starts = comp.start_values_traced(path, registry)
     explicit_user = set(comp._start)
     from_params = set(comp.starts(comp.params))
     for pname, port in type(comp).ports.items():
@@ -263,53 +276,137 @@ def _check_symbols(equations, infos, modes):
 # 4. alias elimination ------------------------------------------------------------------------
 
 def _affine(e: E.Expr):
-    """``(coeffs, const)`` if ``e`` is affine in plain variables (no derivatives), else None."""
+    """``(coeffs, const)`` if ``e`` is affine in plain variables (no derivatives), else None.
+
+    Coefficients and the constant are floats, or parametric expressions (constants and runtime
+    parameters) where they depend on parameters.
+    """
     nodes = E.postorder([e])
     if len(nodes) > MAX_AFFINE_NODES:
         return None
-    form: dict[int, tuple[dict, float]] = {}
+    form: dict[int, tuple[dict, object]] = {}
     for n in nodes:
         op = n.op
         if op == "const":
             form[id(n)] = ({}, n.value)
+        elif op == "param":
+            form[id(n)] = ({}, n)
         elif op == "sym" and "#" not in n.value:
             form[id(n)] = ({n.value: 1.0}, 0.0)
-        elif op in ("add", "sub"):
-            (ca, ka), (cb, kb) = form[id(n.args[0])], form[id(n.args[1])]
-            sign = 1.0 if op == "add" else -1.0
-            c = dict(ca)
-            for v, w in cb.items():
-                c[v] = c.get(v, 0.0) + sign * w
-            form[id(n)] = (c, ka + sign * kb)
-        elif op == "neg":
-            ca, ka = form[id(n.args[0])]
-            form[id(n)] = ({v: -w for v, w in ca.items()}, -ka)
-        elif op == "mul":
-            (ca, ka), (cb, kb) = form[id(n.args[0])], form[id(n.args[1])]
-            if ca and cb:
-                return None
-            if ca:
-                form[id(n)] = ({v: w * kb for v, w in ca.items()}, ka * kb)
-            else:
-                form[id(n)] = ({v: w * ka for v, w in cb.items()}, ka * kb)
-        else:
+        elif op in E.LEAVES:
             return None
+        else:
+            kids = [form[id(a)] for a in n.args]
+            if all(not c for c, _ in kids):
+                form[id(n)] = ({}, n)  # parametric: a number for any one run
+            elif op in ("add", "sub"):
+                (ca, ka), (cb, kb) = kids
+                sub = op == "sub"
+                c = dict(ca)
+                for v, w in cb.items():
+                    w = _kneg(w) if sub else w
+                    c[v] = _kadd(c[v], w) if v in c else w
+                form[id(n)] = (c, _kadd(ka, _kneg(kb) if sub else kb))
+            elif op == "neg":
+                ca, ka = kids[0]
+                form[id(n)] = ({v: _kneg(w) for v, w in ca.items()}, _kneg(ka))
+            elif op == "mul":
+                (ca, ka), (cb, kb) = kids
+                if ca and cb:
+                    return None
+                if ca:
+                    form[id(n)] = ({v: _kmul(w, kb) for v, w in ca.items()}, _kmul(ka, kb))
+                else:
+                    form[id(n)] = ({v: _kmul(w, ka) for v, w in cb.items()}, _kmul(ka, kb))
+            elif op == "div":
+                (ca, ka), (cb, kb) = kids
+                if cb or (isinstance(kb, float) and kb == 0.0):
+                    return None
+                form[id(n)] = ({v: _kdiv(w, kb) for v, w in ca.items()}, _kdiv(ka, kb))
+            else:
+                return None
     coeffs, k = form[id(e)]
-    return {v: w for v, w in coeffs.items() if w != 0.0}, k
+    return {v: w for v, w in coeffs.items() if not _kzero(w)}, k
 
 
-def _eliminate_aliases(equations, infos, subs):
-    """Remove unknowns defined by affine one- and two-variable equations (in place on subs)."""
+# arithmetic on affine coefficients: floats, or parametric expressions where parameters enter
+
+def _knorm(x):
+    return x.value if isinstance(x, E.Expr) and x.op == "const" else x
+
+
+def _kzero(x):
+    return isinstance(x, float) and x == 0.0
+
+
+def _kadd(a, b):
+    if isinstance(a, float) and isinstance(b, float):
+        return a + b
+    return _knorm(E.as_expr(a) + E.as_expr(b))
+
+
+def _kneg(a):
+    return -a if isinstance(a, float) else _knorm(-a)
+
+
+def _kmul(a, b):
+    if isinstance(a, float) and isinstance(b, float):
+        return a * b
+    return _knorm(E.as_expr(a) * E.as_expr(b))
+
+
+def _kdiv(a, b):
+    if isinstance(a, float) and isinstance(b, float):
+        return a / b
+    return _knorm(E.as_expr(a) / E.as_expr(b))
+
+
+def _scrambled(values) -> dict:
+    """Other parameter values, for telling identically-zero coefficients from accidental ones."""
+    return {nm: (v * (1.0 + 0.5 * (zlib.crc32(nm.encode()) % 1000) / 1000.0) + 0.1
+                 if isinstance(v, float) else v) for nm, v in values.items()}
+
+
+def _vanishes(w, values, other) -> bool:
+    """True if a parametric coefficient is identically zero (``k1*k2 - k2*k1``).
+
+    Tested by evaluation at the compile-time values and at a second, scrambled set of values:
+    a non-zero rational function of the parameters vanishing at both is not a practical case.
+    """
+    if isinstance(w, float):
+        return w == 0.0
+    try:
+        if E.evaluate(w, values) != 0.0:
+            return False
+        return E.evaluate(w, other) == 0.0
+    except (ArithmeticError, ValueError):
+        return False
+
+
+def _kexpr(x):
+    return x if isinstance(x, E.Expr) else E.const(x)
+
+
+def _eliminate_aliases(equations, infos, subs, values):
+    """Remove unknowns defined by affine one- and two-variable equations (in place on subs).
+
+    The unknown removed must have a constant coefficient, so that no parameter value can make
+    the elimination divide by zero; the other coefficient and the offset may be parametric.
+    ``values`` holds the parameters' compile-time values (for carrying start values).
+    """
     used_der: set[str] = set()
     for eq in equations:
         for op, name in E.leaves(eq.expr, ("der",)):
             used_der.add(name)
 
+    def num(x):
+        return x if isinstance(x, float) else E.evaluate(x, values)
+
     def resolve(name):
         coef, target, off = 1.0, name, 0.0
         while target in subs:
             c2, t2, o2 = subs[target]
-            coef, target, off = coef * c2, t2, coef * o2 + off
+            coef, target, off = _kmul(coef, c2), t2, _kadd(_kmul(coef, o2), off)
             if t2 is None:
                 return 0.0, None, off
         return coef, target, off
@@ -320,6 +417,7 @@ def _eliminate_aliases(equations, infos, subs):
                 name.endswith((".p", ".x")), -len(name))
 
     remaining = list(equations)
+    other = None
     changed = True
     while changed:
         changed = False
@@ -330,24 +428,44 @@ def _eliminate_aliases(equations, infos, subs):
                 keep.append(eq)
                 continue
             coeffs, k = form
+            if not all(isinstance(w, float) for w in coeffs.values()):
+                if other is None:
+                    other = _scrambled(values)
+                coeffs = {v: w for v, w in coeffs.items() if not _vanishes(w, values, other)}
             if len(coeffs) == 0:
-                what = "contradicts the others" if abs(k) > 0 else "repeats the others"
+                value = num(k)
+                what = "contradicts the others" if abs(value) > 0 else "repeats the others"
+                reads = repr(value)
+                if not isinstance(k, float):
+                    reads = f"{E.to_text(k)} = {value!r}"
+                    what += " (it constrains parameters only)"
                 raise StructureError(
                     f"{eq.label} {what}: after fixing the variables the other equations determine, "
-                    f"it reads {k!r} = 0. This happens when two sources fix the same quantity "
+                    f"it reads {reads} = 0. This happens when two sources fix the same quantity "
                     f"(two pressure sources on one node, flow sources in series, a port closed "
                     f"twice). Remove one of them.")
             if len(coeffs) == 1:
                 (v, a), = coeffs.items()
-                subs[v] = (0.0, None, -k / a)
-                _set_start(infos, v, None, 0.0, -k / a)
+                if not isinstance(a, float):
+                    keep.append(eq)
+                    continue
+                off = _kdiv(_kneg(k), a)
+                subs[v] = (0.0, None, off)
+                _set_start(infos, v, None, 0.0, num(off))
                 changed = True
                 continue
             if len(coeffs) == 2:
-                (u, a), (w, b) = sorted(coeffs.items(), key=lambda kv: rank(kv[0]))
-                # eliminate u (lower rank): u = -(b*w + k)/a
-                subs[u] = (-b / a, w, -k / a)
-                _set_start(infos, u, w, -b / a, -k / a)
+                order = sorted(coeffs.items(), key=lambda kv: rank(kv[0]))
+                if not isinstance(order[0][1], float):
+                    order.reverse()
+                (u, a), (w, b) = order
+                if not isinstance(a, float):
+                    keep.append(eq)
+                    continue
+                # eliminate u: u = -(b*w + k)/a
+                coef, off = _kdiv(_kneg(b), a), _kdiv(_kneg(k), a)
+                subs[u] = (coef, w, off)
+                _set_start(infos, u, w, num(coef), num(off))
                 changed = True
                 continue
             keep.append(eq)
@@ -378,13 +496,13 @@ def _apply(e, subs, resolve):
         if node.op == "sym" and node.value in subs:
             coef, target, off = resolve(node.value)
             if target is None:
-                return E.const(off)
-            return E.const(coef) * E.Expr("sym", (), target) + off
+                return _kexpr(off)
+            return _kexpr(coef) * E.Expr("sym", (), target) + off
         if node.op == "der" and node.value in subs:
             coef, target, _ = resolve(node.value)
-            if target is None or coef == 0.0:
+            if target is None or _kzero(coef):
                 return E.ZERO
-            return E.const(coef) * E.Expr("der", (), target)
+            return _kexpr(coef) * E.Expr("der", (), target)
         return None
 
     return E.substitute([e], leaf)[0]

@@ -17,12 +17,17 @@ discrete modes, and writes its equations as residuals, acausally::
             q = v.observe("q", p.K * (v.a.p - v.b.p), "m^3/s", "flow a -> b")
             return [v.a.q - q, v.a.q + v.b.q]
 
-``equations`` runs once, at compile time, with symbols (see :mod:`pvgraph.expr`).
+``equations`` runs once, at compile time, with symbols (see :mod:`pvgraph.expr`). ``p`` is then a
+:class:`ParamSymbols` view of the parameter model: its numeric fields are parameter symbols, so
+the compiled system takes their values at run time (see :class:`pvgraph.expr.ParameterTrace` for
+what makes a parameter structural).
 """
 
 from __future__ import annotations
 
 import math
+import re
+import types
 from dataclasses import dataclass, field
 from typing import Any, Callable, ClassVar
 
@@ -34,7 +39,7 @@ from .errors import CircuitError, ParameterError
 __all__ = [
     "Domain", "HYDRAULIC", "MECHANICAL", "SIGNAL", "Port", "Hydraulic", "Mechanical",
     "SignalIn", "SignalOut", "Variable", "Params", "NoParams", "Component", "PortRef", "der",
-    "EventSpec", "Observed",
+    "EventSpec", "Observed", "ParamSymbols", "ParameterInfo",
 ]
 
 
@@ -234,6 +239,120 @@ class Symbols:
         self.events.append(EventSpec(name, E.as_expr(condition), direction, action, terminal))
 
 
+@dataclass
+class ParameterInfo:
+    """A runtime parameter of a compiled system: ``owner.field`` of a component's model."""
+
+    name: str
+    value: float
+    unit: str
+    description: str
+    owner: str          # component path
+    field: str          # dotted field path inside the component's parameter model
+    structural: str = ""   # why its value is baked into the compiled code ("" if it is not)
+    in_equations: bool = False  # read by the equations (a symbol of the compiled code)
+    in_starts: bool = False     # read by the start values
+
+
+_UNIT = re.compile(r"\[([^\]]*)\]")
+
+
+def _field_meta(model: BaseModel, name: str) -> tuple[str, str]:
+    info = type(model).model_fields[name]
+    desc = info.description or ""
+    m = _UNIT.search(desc)
+    return (m.group(1) if m else ""), desc
+
+
+class _ModelView:
+    """Attribute access on a parameter model that reports every numeric field read."""
+
+    __slots__ = ("_model", "_prefix", "_owner", "_registry")
+
+    def __init__(self, model, prefix, owner, registry):
+        object.__setattr__(self, "_model", model)
+        object.__setattr__(self, "_prefix", prefix)
+        object.__setattr__(self, "_owner", owner)
+        object.__setattr__(self, "_registry", registry)
+
+    def _leaf(self, name, value):
+        raise NotImplementedError
+
+    def _array(self, name, value):
+        return value
+
+    def __getattr__(self, name):
+        model = self._model
+        cls = type(model)
+        if name in cls.model_fields:
+            value = getattr(model, name)
+            if isinstance(value, float):
+                full = f"{self._owner}.{self._prefix}{name}"
+                if full not in self._registry:
+                    unit, desc = _field_meta(model, name)
+                    self._registry[full] = ParameterInfo(full, value, unit, desc, self._owner,
+                                                         self._prefix + name)
+                return self._leaf(full, value)
+            if isinstance(value, BaseModel):
+                return type(self)(value, f"{self._prefix}{name}.", self._owner, self._registry)
+            if isinstance(value, tuple) and value and all(isinstance(x, float) for x in value):
+                full = f"{self._owner}.{self._prefix}{name}"
+                if full not in self._registry:
+                    unit, desc = _field_meta(model, name)
+                    self._registry[full] = ParameterInfo(full, value, unit, desc, self._owner,
+                                                         self._prefix + name)
+                return self._array(full, value)
+            return value
+        attr = getattr(cls, name, None)
+        if isinstance(attr, property):
+            return attr.fget(self)
+        if isinstance(attr, types.FunctionType):
+            return types.MethodType(attr, self)
+        return getattr(model, name)
+
+    def __setattr__(self, name, value):
+        raise AttributeError("parameters are read-only inside equations")
+
+    def __repr__(self):
+        return f"<parameters of {self._owner}: {type(self._model).__name__}>"
+
+
+class ParamSymbols(_ModelView):
+    """What ``equations(v, p)`` receives as ``p`` when compiled: numeric fields are symbols.
+
+    ``p.A`` is the parameter leaf ``<component>.A`` (see :mod:`pvgraph.expr`); other fields
+    (strings, integers, tuples, ``None``) and nested models read as usual; properties and methods
+    of the model run on this view, so derived quantities stay symbolic.
+    """
+
+    __slots__ = ()
+
+    def _leaf(self, name, value):
+        self._registry[name].in_equations = True
+        trace = E.ParameterTrace.active
+        if trace is not None:
+            return trace.leaf(name, value)
+        return E.Expr("param", (), name)
+
+    def _array(self, name, value):
+        self._registry[name].in_equations = True
+        return E.ParamValues(value, name)
+
+
+class _StartView(_ModelView):
+    """The parameters as numbers, noting which ones the start values read."""
+
+    __slots__ = ()
+
+    def _leaf(self, name, value):
+        self._registry[name].in_starts = True
+        return value
+
+    def _array(self, name, value):
+        self._registry[name].in_starts = True
+        return value
+
+
 class Component:
     """Base class of every component.
 
@@ -315,10 +434,28 @@ class Component:
         values.update(self._start)
         return values
 
-    def trace(self, prefix: str):
-        """Run ``equations`` with symbols; return (residuals, symbols)."""
+    def start_values_traced(self, prefix: str, registry: dict) -> dict[str, float]:
+        """:meth:`start_values`, recording the parameters read in ``registry``."""
+        view = _StartView(self.params, "", prefix, registry)
+        values = {}
+        for name, var in type(self).variables.items():
+            values[name] = var.start(view) if callable(var.start) else var.start
+        values.update(self.starts(view))
+        values.update(self._start)
+        return values
+
+    def trace(self, prefix: str, registry: dict | None = None):
+        """Run ``equations`` with symbols; return (residuals, symbols).
+
+        With ``registry`` (a dict), the numeric parameters are parameter symbols named
+        ``<prefix>.<field>`` and each one read is entered in ``registry`` as a
+        :class:`ParameterInfo`; without it they are plain numbers.
+        """
         v = Symbols(self, prefix)
-        residuals = self.equations(v, self.params)
+        if registry is None:
+            residuals = self.equations(v, self.params)
+        else:
+            residuals = self.equations(v, ParamSymbols(self.params, "", prefix, registry))
         if not isinstance(residuals, (list, tuple)):
             raise CircuitError(f"{type(self).__name__}.equations must return a list of residual "
                                f"expressions, got {type(residuals).__name__}")

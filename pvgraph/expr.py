@@ -13,6 +13,14 @@ regularisations of the hydraulic laws built from these live in :mod:`pvgraph.law
 An expression has no truth value: ``if p > 0:`` inside an equation raises, because a Python branch
 on a variable would be taken once at trace time and silently frozen. Use :func:`where`, a smooth
 law, or an event.
+
+Parameters are leaves too (``param``): while a component is traced, its numeric parameters are
+symbols whose values the compiled functions receive at run time, so one compiled system runs with
+other parameter values (``math.sqrt`` and the other ``math`` functions of the vocabulary stay
+symbolic while tracing). A parameter that the equations turn into a plain number (``float()``,
+a Python ``if``/``min``/``max`` or ``==`` on it, a table built from it) is *structural*: its
+value is baked into the compiled code and :class:`ParameterTrace` records it, so that changing it
+later recompiles (or is refused) by name.
 """
 
 from __future__ import annotations
@@ -26,15 +34,19 @@ import numpy as np
 __all__ = [
     "Expr", "Table", "const", "as_expr", "sqrt", "exp", "log", "tanh", "sin", "cos", "atan",
     "fabs", "where", "minimum", "maximum", "clip", "interp", "is_const", "leaves",
-    "differentiate",
+    "differentiate", "gradient", "evaluate", "ParameterTrace", "is_parametric",
 ]
 
 # Operators and their arity. Leaves: const, sym (a named variable before compilation), der (its
-# time derivative), y / yp (compiled unknown i and its derivative), time, mode (discrete state).
+# time derivative), y / yp (compiled unknown i and its derivative), time, mode (discrete state),
+# param (a runtime parameter: its dotted name while tracing, its index once compiled).
 UNARY = ("neg", "sqrt", "exp", "log", "tanh", "sin", "cos", "atan", "abs")
 BINARY = ("add", "sub", "mul", "div", "pow", "lt", "le", "gt", "ge")
 COMPARISONS = ("lt", "le", "gt", "ge")
-LEAVES = ("const", "sym", "der", "y", "yp", "time", "mode", "cj")
+LEAVES = ("const", "sym", "der", "y", "yp", "time", "mode", "cj", "param")
+# leaves whose value does not change during a run: an expression of these only is a number for
+# any one run (a "parametric" expression)
+FIXED_LEAVES = ("const", "param")
 
 
 class Expr:
@@ -112,7 +124,22 @@ class Expr:
 
     __hash__ = object.__hash__
 
+    def __eq__(self, other):
+        # ``p.x == 0`` on a traced parameter compares values (a structural use); expressions
+        # otherwise compare by identity so that they can live in sets and dicts
+        if not isinstance(other, Expr) and ParameterTrace.active is not None and \
+                isinstance(other, (int, float)) and is_parametric(self):
+            return ParameterTrace.active.number(self, "compared with ==") == other
+        return self is other
+
+    def __ne__(self, other):
+        result = self.__eq__(other)
+        return not result
+
     def __bool__(self):
+        if ParameterTrace.active is not None and is_parametric(self):
+            return bool(ParameterTrace.active.number(self, "used in a Python `if`/`and`/`or`/"
+                                                           "`min`/`max`"))
         raise TypeError(
             "an equation branched on a symbolic value with a Python `if` (or `and`/`or`/`min`/"
             "`max`); the branch would be frozen at compile time. Use pvgraph.expr.where(), "
@@ -121,10 +148,152 @@ class Expr:
     def __float__(self):
         if self.op == "const":
             return float(self.value)
+        if ParameterTrace.active is not None and is_parametric(self):
+            return float(ParameterTrace.active.number(self, "converted to a number (float(), "
+                                                            "math.*, a table)"))
         raise TypeError(f"cannot convert a symbolic expression to float: {self!r}")
+
+    def __int__(self):
+        return int(float(self))
+
+    def __index__(self):
+        if ParameterTrace.active is not None and is_parametric(self):
+            return int(ParameterTrace.active.number(self, "used as an integer"))
+        raise TypeError(f"cannot use a symbolic expression as an integer: {self!r}")
+
+    def __round__(self, ndigits=None):
+        return round(float(self), ndigits)
 
     def __repr__(self):
         return to_text(self)
+
+
+class ParameterTrace:
+    """The parameter values of a compilation and the parameters used structurally.
+
+    While active (``with ParameterTrace(values):``), a parametric expression (constants and
+    parameters only) used as a Python number or truth value is evaluated with ``values`` and
+    every parameter in it is recorded in :attr:`structural` with the reason, under the label
+    of :attr:`where` (the component being traced).
+    """
+
+    active: "ParameterTrace | None" = None
+
+    def __init__(self, values: dict):
+        self.values = values
+        self.structural: dict[str, str] = {}
+        self.where = ""
+        self._leaves: dict[str, Expr] = {}
+        self.tables: list = []    # runtime tables built from parameter arrays
+
+    def leaf(self, name: str, value: float) -> "Expr":
+        """The one parameter leaf named ``name`` (shared, so ``k - k`` folds to zero)."""
+        node = self._leaves.get(name)
+        if node is None:
+            node = self._leaves[name] = Expr("param", (), name)
+            self.values.setdefault(name, value)
+        return node
+
+    def __enter__(self):
+        self._outer = ParameterTrace.active
+        ParameterTrace.active = self
+        if self._outer is None:
+            _patch_math()
+        return self
+
+    def __exit__(self, *exc):
+        ParameterTrace.active = self._outer
+        if self._outer is None:
+            _unpatch_math()
+
+    def number(self, e: "Expr", how: str) -> float:
+        """The value of the parametric expression ``e``; its parameters become structural."""
+        for op, name in leaves(e, ("param",)):
+            self.structural.setdefault(name, f"{how} in {self.where}" if self.where else how)
+        return evaluate(e, self.values)
+
+
+# While parameters are traced, the functions of the ``math`` module that the vocabulary has
+# accept expressions and return expressions (``math.sqrt(2 / p.rho)`` in a component stays a
+# function of the runtime parameter); on numbers they are the ``math`` functions themselves.
+_MATH_NAMES = ("sqrt", "exp", "log", "tanh", "sin", "cos", "atan", "fabs")
+_MATH_SAVED: dict = {}
+
+
+def _symbolic_math(name, original):
+    def fn(x, *rest):
+        if isinstance(x, Expr) and not rest:
+            return globals()[name](x)
+        return original(x, *rest)
+    fn.__name__ = name
+    fn.__doc__ = original.__doc__
+    return fn
+
+
+def _patch_math():
+    for name in _MATH_NAMES:
+        original = getattr(math, name)
+        _MATH_SAVED[name] = original
+        setattr(math, name, _symbolic_math(name, original))
+
+
+def _unpatch_math():
+    for name, original in _MATH_SAVED.items():
+        setattr(math, name, original)
+    _MATH_SAVED.clear()
+
+
+class ParamValues(tuple):
+    """A parameter array (a tuple field of numbers) while tracing.
+
+    Handed to :class:`Table` it makes a runtime table; read element by element (iterated,
+    indexed, converted by numpy) it is a structural use, recorded like ``float()`` on a scalar.
+    """
+
+    def __new__(cls, values, name):
+        self = super().__new__(cls, values)
+        self.name = name
+        self.raw = tuple(values)
+        return self
+
+    def _structural(self):
+        trace = ParameterTrace.active
+        if trace is not None:
+            trace.structural.setdefault(
+                self.name, f"read element by element in {trace.where}" if trace.where else
+                "read element by element")
+
+    def __iter__(self):
+        self._structural()
+        return iter(self.raw)
+
+    def __getitem__(self, k):
+        self._structural()
+        return self.raw[k]
+
+    def __reduce__(self):
+        return (tuple, (self.raw,))
+
+
+def is_parametric(e: "Expr") -> bool:
+    """True if ``e`` depends on constants and parameters only (a number for any one run)."""
+    if e.op in FIXED_LEAVES:
+        return True
+    if e.op in LEAVES:
+        return False
+    stack = list(e.args)
+    seen = set()
+    while stack:
+        n = stack.pop()
+        if id(n) in seen:
+            continue
+        seen.add(id(n))
+        if n.op in LEAVES:
+            if n.op not in FIXED_LEAVES:
+                return False
+            continue
+        stack.extend(n.args)
+    return True
 
 
 class Table:
@@ -136,10 +305,22 @@ class Table:
     which continues the end segments linearly.
     """
 
-    __slots__ = ("x", "y", "method", "extrapolate", "name", "_xl", "_yl", "_dl", "_n")
+    __slots__ = ("x", "y", "method", "extrapolate", "name", "_xl", "_yl", "_dl", "_n",
+                 "sources", "slot")
 
     def __init__(self, x, y, *, method: str = "pchip", extrapolate: bool = False,
                  name: str = "table"):
+        # a table built from parameter arrays while tracing is a runtime table: the compiled
+        # system rebuilds it when those parameters change (see ParamValues)
+        self.sources = (x.name if isinstance(x, ParamValues) else None,
+                        y.name if isinstance(y, ParamValues) else None)
+        self.slot = None
+        if isinstance(x, ParamValues):
+            x = x.raw
+        if isinstance(y, ParamValues):
+            y = y.raw
+        if any(self.sources) and ParameterTrace.active is not None:
+            ParameterTrace.active.tables.append(self)
         x = np.asarray(x, dtype=float)
         y = np.asarray(y, dtype=float)
         if x.ndim != 1 or y.shape != x.shape or x.size < 2:
@@ -157,6 +338,11 @@ class Table:
         self._dl = (_pchip_slopes(x, y) if method == "pchip" else
                     np.zeros_like(x)).tolist()
         self._n = x.size
+
+    def with_values(self, x=None, y=None) -> "Table":
+        """A table like this one with other knots or values (same method and name)."""
+        return Table(self.x if x is None else x, self.y if y is None else y,
+                     method=self.method, extrapolate=self.extrapolate, name=self.name)
 
     def _segment(self, xv):
         return min(max(bisect.bisect_right(self._xl, xv) - 1, 0), self._n - 2)
@@ -256,7 +442,9 @@ def _pchip_end(h0, h1, m0, m1):
 # construction with constant folding ---------------------------------------------------------
 
 def const(value: float) -> Expr:
-    """A constant node."""
+    """A constant node (a parametric expression, constant during a run, passes through)."""
+    if isinstance(value, Expr) and is_parametric(value):
+        return value
     return Expr("const", (), float(value))
 
 
@@ -529,6 +717,130 @@ def differentiate(e: Expr, wrt: tuple[str, object], memo: dict | None = None) ->
     return memo[id(e)]
 
 
+_NUMERIC = {"neg": lambda a: -a, "sqrt": math.sqrt, "exp": math.exp, "log": math.log,
+            "tanh": math.tanh, "sin": math.sin, "cos": math.cos, "atan": math.atan, "abs": abs,
+            "add": lambda a, b: a + b, "sub": lambda a, b: a - b, "mul": lambda a, b: a * b,
+            "div": lambda a, b: a / b, "pow": lambda a, b: a ** b,
+            "lt": lambda a, b: a < b, "le": lambda a, b: a <= b, "gt": lambda a, b: a > b,
+            "ge": lambda a, b: a >= b}
+
+
+def evaluate(e: Expr, params) -> float:
+    """The number a parametric expression stands for; ``params[payload]`` gives parameters.
+
+    Other leaves are read from ``params.leaf(node)`` where ``params`` has that method.
+    """
+    if e.op == "const":
+        return e.value
+    if e.op == "param":
+        return params[e.value]
+    val: dict[int, float] = {}
+    for node in postorder([e]):
+        op = node.op
+        if op == "const":
+            val[id(node)] = node.value
+        elif op == "param":
+            val[id(node)] = params[node.value]
+        elif op in LEAVES:
+            if not hasattr(params, "leaf"):
+                raise TypeError(f"cannot evaluate {to_text(e)}: it depends on {to_text(node)}")
+            val[id(node)] = params.leaf(node)
+        elif op == "where":
+            c, a, b = (val[id(x)] for x in node.args)
+            val[id(node)] = a if c else b
+        elif op in ("interp", "interp_d"):
+            tab = node.value
+            if tab.slot is not None and hasattr(params, "table"):
+                tab = params.table(tab)
+            xv = val[id(node.args[0])]
+            val[id(node)] = tab.value(xv) if op == "interp" else tab.slope(xv)
+        else:
+            val[id(node)] = _NUMERIC[op](*(val[id(x)] for x in node.args))
+    return float(val[id(e)])
+
+
+def gradient(root: Expr, ops: tuple[str, ...] = ("y", "yp", "param")) -> dict:
+    """Every partial derivative of ``root`` with respect to its leaves of kind ``ops``.
+
+    One reverse (adjoint) pass over the graph of ``root``: the cost is linear in its size
+    however many leaves it has, and the adjoints are dropped as soon as they are propagated.
+    Returns ``{(op, payload): derivative}`` with an entry for every such leaf in ``root`` (the
+    derivative may fold to zero).
+    """
+    order = postorder([root])
+    adj: dict[int, Expr] = {id(root): ONE}
+    grads: dict = {}
+    for node in reversed(order):  # parents before children
+        a = adj.pop(id(node), ZERO)
+        op = node.op
+        if op in LEAVES:
+            if op in ops:
+                key = (op, node.value)
+                grads[key] = _add(grads[key], a) if key in grads else a
+            continue
+        if is_const(a, 0.0):
+            for x in node.args:  # keep the incidence of every leaf below
+                _touch(adj, x)
+            continue
+        for child, contrib in _adjoints(node, a):
+            k = id(child)
+            old = adj.get(k)
+            adj[k] = contrib if old is None else _add(old, contrib)
+        if op in ("where", "interp_d") or op in COMPARISONS:
+            for x in node.args:
+                _touch(adj, x)
+    return grads
+
+
+def _touch(adj, child):
+    adj.setdefault(id(child), ZERO)
+
+
+def _adjoints(node, a):
+    """``(child, a * d node / d child)`` for the children of ``node``."""
+    op = node.op
+    x = node.args
+    if op == "add":
+        return ((x[0], a), (x[1], a))
+    if op == "sub":
+        return ((x[0], a), (x[1], _neg(a)))
+    if op == "neg":
+        return ((x[0], _neg(a)),)
+    if op == "mul":
+        return ((x[0], _mul(a, x[1])), (x[1], _mul(x[0], a)))
+    if op == "div":
+        return ((x[0], _div(a, x[1])), (x[1], _neg(_div(_mul(a, node), x[1]))))
+    if op == "pow":
+        base, expo = x
+        out = [(base, _mul(a, _mul(expo, _pow(base, _sub(expo, ONE)))))]
+        if not is_const(expo):
+            out.append((expo, _mul(a, _mul(node, log(base)))))
+        return out
+    if op == "sqrt":
+        return ((x[0], _div(_mul(const(0.5), a), node)),)
+    if op == "exp":
+        return ((x[0], _mul(a, node)),)
+    if op == "log":
+        return ((x[0], _div(a, x[0])),)
+    if op == "tanh":
+        return ((x[0], _mul(a, _sub(ONE, _mul(node, node)))),)
+    if op == "sin":
+        return ((x[0], _mul(a, cos(x[0]))),)
+    if op == "cos":
+        return ((x[0], _neg(_mul(a, sin(x[0])))),)
+    if op == "atan":
+        return ((x[0], _div(a, _add(ONE, _mul(x[0], x[0])))),)
+    if op == "abs":
+        return ((x[0], where(x[0] >= 0.0, a, _neg(a))),)
+    if op == "where":
+        return ((x[1], where(x[0], a, ZERO)), (x[2], where(x[0], ZERO, a)))
+    if op == "interp":
+        return ((x[0], _mul(a, Expr("interp_d", (x[0],), node.value))),)
+    if op in COMPARISONS or op == "interp_d":
+        return ()
+    raise NotImplementedError(f"no derivative rule for {op!r}")
+
+
 def _derivative(node, wrt, memo):
     op = node.op
     if op in LEAVES:
@@ -552,6 +864,8 @@ def _derivative(node, wrt, memo):
         base, expo = a
         if is_const(expo):
             return _mul(_mul(expo, _pow(base, const(expo.value - 1.0))), d[0])
+        if is_const(d[1], 0.0):
+            return _mul(_mul(expo, _pow(base, _sub(expo, ONE))), d[0])
         return _mul(node, _add(_mul(d[1], log(base)), _div(_mul(expo, d[0]), base)))
     if op == "sqrt":
         return _div(_mul(const(0.5), d[0]), node)
@@ -604,6 +918,8 @@ def to_text(e: Expr, names=None, _prec=0) -> str:
         return f"mode[{e.value}]"
     if op == "cj":
         return "c"
+    if op == "param":
+        return e.value if isinstance(e.value, str) else f"P[{e.value}]"
     if op in _INFIX:
         p = _PREC[op]
         left = to_text(e.args[0], names, p)

@@ -134,7 +134,8 @@ def _atomic_write(path, write):
 def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
              atol: float | None = None, solver: str = "pvgraph", t_eval=None,
              max_step: float | None = None, start: dict[str, float] | None = None,
-             calc_initial: str | None = "algebraic", y0=None, yp0=None, **options) -> Solution:
+             calc_initial: str | None = "algebraic", y0=None, yp0=None, params=None,
+             **options) -> Solution:
     """Simulate a circuit (compiled on the fly) or a :class:`System` from ``t_start`` to ``t_end``.
 
     Parameters
@@ -158,10 +159,16 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         Full initial vectors (e.g. a previous operating point); ``start`` is applied on top.
     calc_initial : {"algebraic", "all", None}
         How to make the initial values consistent (see :func:`pvgraph.solver.solve_dae`).
+    params : dict, optional
+        Parameter values by name (``{"orifice.A": 2e-6}``), applied with
+        :meth:`System.with_params` without compiling again; the solution's ``system`` carries
+        them. ``target.parameter_names`` lists the names.
     """
     system = target.compile() if isinstance(target, Circuit) else target
     if not isinstance(system, System):
         raise PvgraphError(f"simulate() takes a Circuit or a System, got {type(target).__name__}")
+    if params:
+        system = system.with_params(params)
     if solver not in SOLVERS:
         raise PvgraphError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
     if not (math.isfinite(t_end) and t_end > t_start):

@@ -8,17 +8,26 @@ differential and algebraic variables, and the aliases removed by the compiler.
 
 from __future__ import annotations
 
+import copy
+import dataclasses
+import difflib
 import math
+import warnings
 from dataclasses import dataclass
+from typing import Mapping
 
 import numpy as np
 from scipy.sparse import csc_matrix
 
 from . import codegen
 from . import expr as E
-from .errors import CircuitError
+from .errors import CircuitError, ParameterError
 
-__all__ = ["System", "build_system", "ModeView"]
+__all__ = ["System", "build_system", "ModeView", "RecompileWarning"]
+
+
+class RecompileWarning(UserWarning):
+    """A parameter change needed a new compilation (a structural parameter changed)."""
 
 
 @dataclass
@@ -99,7 +108,19 @@ class System:
         self.mode_start = list(mode_start)
         self.modes = list(mode_start)
         self.mode_log: list[tuple[float, tuple]] = []
-        self.aliases = aliases  # name -> (coef, target or None, offset)
+        self._alias_exprs = aliases  # name -> (coef, target or None, offset); may be parametric
+        self._alias_values = None
+        self._P: list[float] = []
+        self.parameters: dict = {}   # name -> ParameterInfo
+        self._lazy: dict = {}        # generated on demand, shared by with_params copies
+        self._circuit = None
+        self._components: dict = {}
+        self._models: dict = {}
+        self._pindex: dict = {}
+        self._tables: list = []
+        self._obs_exprs: dict = {}
+        self._derive = None
+        self._nbase = 0
         self._sources = sources
         indptr = np.zeros(self.n + 1, dtype=np.int64)
         np.add.at(indptr, self._cols + 1, 1)
@@ -112,14 +133,14 @@ class System:
     def residual(self, t, y, yp):
         """F(t, y, y') as an array; NaN where an equation cannot be evaluated."""
         try:
-            return np.array(self._res(t, y.tolist(), yp.tolist(), self.modes))
+            return np.array(self._res(t, y.tolist(), yp.tolist(), self.modes, self._P))
         except (ValueError, ZeroDivisionError, OverflowError):
             return np.full(self.n, np.nan)
 
     def jacobian_values(self, t, y, yp, c):
         """Values of dF/dy + c dF/dy' on the fixed pattern (CSC order)."""
         try:
-            return np.array(self._jac(t, y.tolist(), yp.tolist(), self.modes, c))
+            return np.array(self._jac(t, y.tolist(), yp.tolist(), self.modes, self._P, c))
         except (ValueError, ZeroDivisionError, OverflowError):
             return np.full(len(self._rows), np.nan)
 
@@ -153,7 +174,7 @@ class System:
 
     def event_values(self, t, y, yp):
         """Every event function at one point."""
-        return self._event_fn(t, y.tolist(), yp.tolist(), self.modes)
+        return self._event_fn(t, y.tolist(), yp.tolist(), self.modes, self._P)
 
     def solver_events(self):
         """The declared events as :class:`pvgraph.solver.Event` objects bound to this system."""
@@ -168,9 +189,10 @@ class System:
     def _event_component(self, k):
         fn = self._event_fn
         modes = self.modes
+        P = self._P
 
         def g(t, y, yp):
-            return fn(t, y.tolist(), yp.tolist(), modes)[k]
+            return fn(t, y.tolist(), yp.tolist(), modes, P)[k]
         return g
 
     def _event_action(self, path, spec):
@@ -185,18 +207,28 @@ class System:
         return act
 
     # names ------------------------------------------------------------------------------------
+    @property
+    def aliases(self) -> dict:
+        """Eliminated variables: name -> ``(coef, target or None, offset)`` at these parameters."""
+        if self._alias_values is None:
+            P = self._P
+            self._alias_values = {
+                nm: (_num(c, P), t, _num(o, P)) for nm, (c, t, o) in self._alias_exprs.items()}
+        return self._alias_values
+
     def resolve(self, name: str):
         """``(coef, index or None, offset)`` with ``name = coef * y[index] + offset``."""
         if name in self.index:
             return 1.0, self.index[name], 0.0
-        if name in self.aliases:
-            coef, target, off = self.aliases[name]
+        aliases = self.aliases
+        if name in aliases:
+            coef, target, off = aliases[name]
             return coef, (None if target is None else self.index[target]), off
         raise KeyError(self._unknown(name))
 
     def _unknown(self, name):
         import difflib
-        pool = list(self.index) + list(self.aliases) + list(self.observed)
+        pool = list(self.index) + list(self._alias_exprs) + list(self.observed)
         close = difflib.get_close_matches(name, pool, n=3)
         hint = f" Close matches: {close}." if close else ""
         return f"{self.name}: no variable or output named {name!r}.{hint}"
@@ -211,7 +243,7 @@ class System:
 
     def all_names(self) -> list[str]:
         """Every addressable name: unknowns, eliminated aliases and derived outputs."""
-        return list(self.names) + sorted(self.aliases) + sorted(self.observed)
+        return list(self.names) + sorted(self._alias_exprs) + sorted(self.observed)
 
     def evaluate_observed(self, t, Y, YP, modes_per_time):
         """Derived outputs over a solution: dict name -> array (len(t))."""
@@ -220,14 +252,303 @@ class System:
         with np.errstate(all="ignore"):
             d = [np.asarray(m) for m in np.asarray(modes_per_time, dtype=float).T] \
                 if len(self.mode_names) else []
-            vals = self._obs(np.asarray(t), list(Y.T), list(YP.T), d)
+            vals = self._obs(np.asarray(t), list(Y.T), list(YP.T), d, self._P)
         m = len(t)
         return {nm: np.broadcast_to(np.asarray(v, dtype=float), (m,)).copy()
                 for nm, v in zip(self.observed, vals)}
 
+    # parameters ---------------------------------------------------------------------------------
+    @property
+    def parameter_names(self) -> list[str]:
+        """Names of the runtime parameters, in the order of the parameter vector."""
+        return list(self.parameters)
+
+    @property
+    def parameter_values(self) -> dict[str, float]:
+        """``{name: value}`` of every parameter."""
+        return {nm: info.value for nm, info in self.parameters.items()}
+
+    def parameter_table(self) -> str:
+        """A plain-text table of the parameters: name, value, unit, runtime or structural."""
+        rows = [f"{'parameter':40s} {'value':>12s} {'unit':>10s}  use"]
+        for nm, info in self.parameters.items():
+            use = ("structural: " + info.structural) if info.structural else \
+                ("start value" if not info.in_equations else "runtime")
+            value = f"{info.value:12.6g}" if isinstance(info.value, float) else \
+                f"{f'({len(info.value)} values)':>12s}"
+            rows.append(f"{nm:40s} {value} {info.unit:>10s}  {use}")
+        return "\n".join(rows)
+
+    def with_params(self, values: Mapping[str, float] | None = None, *,
+                    recompile: bool = True) -> "System":
+        """This system with other parameter values, sharing its compiled code.
+
+        ``values`` maps parameter names (``"orifice.A"``: component path and field) to numbers.
+        Values are validated by the component's parameter model (bounds, cross-field rules).
+        A runtime parameter only changes the parameter vector (and the start values that depend
+        on it). A structural parameter (one the equations turn into a plain number, or a field
+        that is not numeric) needs a new compilation: with ``recompile=True`` that happens with
+        a :class:`RecompileWarning` naming the parameters; with ``recompile=False`` a
+        :class:`~pvgraph.errors.ParameterError` is raised.
+        """
+        values = dict(values or {})
+        new = self._copy()
+        if not values:
+            return new
+        updates = self._group_updates(values)
+        models = {path: _updated_model(self._models[path], fields, path)
+                  for path, fields in updates.items()}
+        structural = []
+        for path, fields in updates.items():
+            for fname in fields:
+                full = f"{path}.{fname}"
+                info = self.parameters.get(full)
+                if info is None:
+                    structural.append(f"{full} (not a numeric parameter of the compiled "
+                                      f"equations)")
+                elif info.structural:
+                    structural.append(f"{full} ({info.structural})")
+        if structural:
+            if not recompile or self._circuit is None:
+                raise ParameterError(
+                    f"{self.name}: cannot change structural parameter(s) without compiling "
+                    f"again: " + "; ".join(structural) + ". Use with_params(..., "
+                    f"recompile=True) or build and compile the circuit with the new values.")
+            warnings.warn(RecompileWarning(
+                f"{self.name}: compiling again, structural parameter(s) changed: "
+                + "; ".join(structural)), stacklevel=2)
+            return self._recompiled(models)
+        for path, model in models.items():
+            comp = self._components[path]
+            old_starts = _starts_of(comp, self._models[path]) if any(
+                self.parameters[f"{path}.{f}"].in_starts for f in updates[path]) else None
+            for fname in updates[path]:
+                full = f"{path}.{fname}"
+                value = _field_value(model, fname)
+                k = self._pindex[full]
+                new._P[k] = value
+                new.parameters[full] = dataclasses.replace(self.parameters[full], value=value)
+            if old_starts is not None:
+                new._apply_starts(path, old_starts, _starts_of(comp, model))
+            new._models[path] = model
+        changed = {f"{path}.{f}" for path, fields in updates.items() for f in fields}
+        for tab in self._tables:
+            xs, ys = tab.sources
+            if xs in changed or ys in changed:
+                try:
+                    new._P[tab.slot] = tab.with_values(
+                        x=new._P[self._pindex[xs]] if xs else None,
+                        y=new._P[self._pindex[ys]] if ys else None)
+                except ValueError as exc:
+                    raise ParameterError(f"{self.name}: {exc}") from None
+        new._alias_values = None
+        new._update_derived()
+        return new
+
+    def _update_derived(self):
+        """Recompute the parametric subexpressions hoisted out of the generated functions."""
+        if self._derive is None:
+            return
+        try:
+            values = self._derive(0.0, None, None, None, self._P)
+        except (ValueError, ZeroDivisionError, OverflowError) as exc:
+            raise ParameterError(f"{self.name}: the parameter values give an invalid derived "
+                                 f"quantity ({exc}); check the values just set") from None
+        self._P[self._nbase:] = values
+
+    def params_from(self, circuit) -> dict[str, float]:
+        """The runtime parameter values of ``circuit``, built like the one compiled.
+
+        Building a circuit is cheap, compiling it is not: build the circuit with other values,
+        then ``system.with_params(system.params_from(circuit))`` runs it without compiling.
+        Raises :class:`~pvgraph.errors.ParameterError` if the circuit differs in anything but
+        runtime parameter values (another component, a structural parameter).
+        """
+        from .compiler import _flatten
+        leaves = dict(_flatten(circuit))
+        if leaves.keys() != self._components.keys():
+            missing = sorted(set(self._components) ^ set(leaves))[:5]
+            raise ParameterError(f"{self.name}: the circuit {circuit.name!r} has other "
+                                 f"components than the compiled one: {missing}")
+        out = {}
+        diffs = []
+        runtime = self._runtime_fields
+        for path, comp in leaves.items():
+            base = self._models[path]
+            if type(comp) is not type(self._components[path]) or \
+                    type(comp.params) is not type(base):
+                diffs.append(f"{path} is a {type(comp).__name__}")
+                continue
+            if comp._start != self._components[path]._start:
+                diffs.append(f"{path} has other start values")
+            if comp.params == base:
+                continue
+            fields = runtime.get(path, set())
+            for fname, value, old in _field_diffs(comp.params, base):
+                if fname in fields:
+                    out[f"{path}.{fname}"] = value
+                else:
+                    diffs.append(f"{path}.{fname} = {value!r} (compiled with {old!r})")
+        if diffs:
+            raise ParameterError(f"{self.name}: the circuit differs structurally from the "
+                                 f"compiled one: " + "; ".join(diffs[:8]) +
+                                 ". Compile it instead.")
+        return out
+
+    @property
+    def _runtime_fields(self) -> dict[str, set]:
+        fields = self._lazy.get("runtime_fields")
+        if fields is None:
+            fields = {}
+            for info in self.parameters.values():
+                if not info.structural:
+                    fields.setdefault(info.owner, set()).add(info.field)
+            self._lazy["runtime_fields"] = fields
+        return fields
+
+    def parameter_jacobian(self, t, y, yp, names=None) -> np.ndarray:
+        """dF/dp at ``(t, y, yp)`` as a dense ``(n, len(names))`` array (default: all)."""
+        fn = self._lazy.get("dFdp")
+        if fn is None:
+            fn = self._lazy["dFdp"] = self._generate_dfdp()
+        cols = self._param_columns(names)
+        vals = np.array(fn(t, y.tolist(), yp.tolist(), self.modes, self._P), dtype=float)
+        rows, pcols = self._lazy["dFdp_pattern"]
+        J = np.zeros((self.n, len(self.parameters)))
+        np.add.at(J, (rows, pcols), vals)
+        return J[:, cols]
+
+    def output_gradient(self, name: str, t, y, yp, names=None):
+        """Partial derivatives of a named quantity: ``(d/dy (n,), d/dp (len(names),))``.
+
+        ``name`` is an unknown, an eliminated alias or a derived output; the parameters default
+        to all. Used for sensitivities of outputs: ``d out/dp = d/dy dy/dp + d/dp``.
+        """
+        cols = self._param_columns(names)
+        gy = np.zeros(self.n)
+        gp = np.zeros(len(self.parameters))
+        if name in self.index:
+            gy[self.index[name]] = 1.0
+            return gy, gp[cols]
+        env = _Env(t, y, yp, self.modes, self._P)
+        if name in self._alias_exprs:
+            coef, target, off = self._alias_exprs[name]
+            yt = 0.0 if target is None else y[self.index[target]]
+            if target is not None:
+                gy[self.index[target]] = _num(coef, self._P)
+            for (op, k), d in _param_grad(coef).items():
+                gp[k] += E.evaluate(d, env) * yt
+            for (op, k), d in _param_grad(off).items():
+                gp[k] += E.evaluate(d, env)
+            return gy, gp[cols]
+        if name in self.observed:
+            expr = self._obs_exprs[name]
+            for (op, k), d in E.gradient(expr, ("y", "param")).items():
+                v = E.evaluate(d, env)
+                if op == "y":
+                    gy[k] += v
+                else:
+                    gp[k] += v
+            return gy, gp[cols]
+        raise KeyError(self._unknown(name))
+
+    def _param_columns(self, names):
+        if names is None:
+            return list(range(len(self.parameters)))
+        cols = []
+        for nm in names:
+            if nm not in self._pindex:
+                raise ParameterError(self._unknown_parameter(nm))
+            cols.append(self._pindex[nm])
+        return cols
+
+    def _generate_dfdp(self):
+        entries = self._lazy.pop("dFdp_entries")
+        self._lazy["dFdp_pattern"] = (np.array([r for r, _, _ in entries], dtype=np.int64),
+                                      np.array([k for _, k, _ in entries], dtype=np.int64))
+        src, tabs = codegen.generate("param_jacobian", [d for _, _, d in entries],
+                                     extra_args=("P",))
+        self._sources.append(src)
+        return codegen.compile_function("param_jacobian", src, tabs)
+
+    def _unknown_parameter(self, name):
+        close = difflib.get_close_matches(name, list(self.parameters), n=3, cutoff=0.6)
+        hint = f" Close matches: {close}." if close else ""
+        return (f"{self.name}: no parameter named {name!r}.{hint} Parameters are named "
+                f"<component path>.<field>; system.parameter_names lists them.")
+
+    def _group_updates(self, values):
+        """``{component path: {field: value}}``; unknown names raise with close matches."""
+        out: dict[str, dict] = {}
+        for name, value in values.items():
+            if not isinstance(name, str):
+                raise ParameterError(f"{self.name}: parameter names are strings, got {name!r}")
+            path, fname = self._split_name(name)
+            out.setdefault(path, {})[fname] = value
+        return out
+
+    def _split_name(self, name):
+        if name in self.parameters:
+            info = self.parameters[name]
+            return info.owner, info.field
+        parts = name.split(".")
+        for k in range(len(parts) - 1, 0, -1):
+            path = ".".join(parts[:k])
+            if path in self._components:
+                fname = ".".join(parts[k:])
+                if _has_field(self._components[path].params, fname):
+                    return path, fname
+        pool = list(self.parameters) + [
+            f"{path}.{f}" for path, c in self._components.items()
+            for f in type(c.params).model_fields]
+        close = difflib.get_close_matches(name, pool, n=3, cutoff=0.6)
+        hint = f" Close matches: {close}." if close else ""
+        raise ParameterError(f"{self.name}: no parameter named {name!r}.{hint} Parameters are "
+                             f"named <component path>.<field>; system.parameter_names lists "
+                             f"the runtime ones.")
+
+    def _apply_starts(self, path, old, new):
+        for key, value in new.items():
+            if old.get(key) == value:
+                continue
+            try:
+                coef, idx, off = self.resolve(f"{path}.{key}")
+            except KeyError:
+                continue
+            if idx is not None and coef != 0.0:
+                self.y0[idx] = (value - off) / coef
+
+    def _copy(self) -> "System":
+        new = copy.copy(self)
+        new._P = list(self._P)
+        new.parameters = dict(self.parameters)
+        new._models = dict(self._models)
+        new.modes = list(self.mode_start)
+        new.mode_log = [(-math.inf, tuple(new.modes))]
+        new.counters = {k: 0 for k in self.counters}
+        new.y0 = self.y0.copy()
+        new.yp0 = self.yp0.copy()
+        return new
+
+    def _recompiled(self, models):
+        from .compiler import compile_circuit
+        comps = self._components
+        merged = {path: m for path, m in self._models.items() if m is not comps[path].params}
+        merged.update(models)
+        saved = {path: comps[path].params for path in merged}
+        try:
+            for path, model in merged.items():
+                comps[path].params = model
+            return compile_circuit(self._circuit)
+        finally:
+            for path, model in saved.items():
+                comps[path].params = model
+
     def source(self) -> str:
         """The generated Python source of the residual, Jacobian, events and outputs."""
-        return "\n\n".join(self._sources)
+        head = "".join(f"# P[{k}] = {nm} [{info.unit}]\n"
+                       for k, (nm, info) in enumerate(self.parameters.items()))
+        return head + "\n" + "\n\n".join(self._sources)
 
     def __repr__(self):
         return (f"<System {self.name}: {self.n} unknowns ({int(self.differential.sum())} "
@@ -235,13 +556,179 @@ class System:
                 f"events>")
 
 
-def build_system(name, equations, infos, subs, observed, events, mode_names, mode_start):
-    """Number the unknowns, generate code and run the structural checks."""
+# helpers for parameters ----------------------------------------------------------------------
+
+def _hoist(groups, base):
+    """Move the largest parametric subexpressions of ``groups`` (lists of roots) out.
+
+    Returns the rewritten groups, where each such subexpression is the leaf ``P[base + k]``,
+    and the list of the subexpressions (for the ``derive`` function that computes them).
+    """
+    roots = [r for g in groups for r in g]
+    order = E.postorder(roots)
+    fixed: dict[int, bool] = {}
+    for node in order:
+        op = node.op
+        if op in E.LEAVES:
+            fixed[id(node)] = op in E.FIXED_LEAVES
+        else:
+            fixed[id(node)] = all(fixed[id(a)] for a in node.args)
+    hoist: set[int] = set()
+
+    def worth(node):
+        return fixed[id(node)] and node.op not in E.LEAVES
+
+    for node in order:
+        if not fixed[id(node)]:
+            for a in node.args:
+                if worth(a):
+                    hoist.add(id(a))
+    for r in roots:
+        if worth(r):
+            hoist.add(id(r))
+    derived: list = []
+    slot_of: dict[int, E.Expr] = {}
+    memo: dict[int, E.Expr] = {}
+    for node in order:
+        k = id(node)
+        if k in hoist:
+            slot_of[k] = E.Expr("param", (), base + len(derived))
+            derived.append(node)
+            memo[k] = slot_of[k]
+        elif node.op in E.LEAVES or fixed[k]:
+            memo[k] = node
+        else:
+            args = tuple(memo[id(a)] for a in node.args)
+            memo[k] = node if all(x is y for x, y in zip(args, node.args)) else \
+                E.Expr(node.op, args, node.value)
+    return [[memo[id(r)] for r in g] for g in groups], derived
+
+
+def _num(x, P) -> float:
+    return x if isinstance(x, float) else E.evaluate(x, P)
+
+
+class _Env:
+    """Leaf values for :func:`pvgraph.expr.evaluate` at one point of a run."""
+
+    def __init__(self, t, y, yp, modes, P):
+        self.t, self.y, self.yp, self.modes, self.P = t, y, yp, modes, P
+
+    def __getitem__(self, k):
+        return self.P[k]
+
+    def table(self, tab):
+        return self.P[tab.slot]
+
+    def leaf(self, node):
+        op = node.op
+        if op == "y":
+            return float(self.y[node.value])
+        if op == "yp":
+            return float(self.yp[node.value])
+        if op == "time":
+            return float(self.t)
+        if op == "mode":
+            return float(self.modes[node.value])
+        raise TypeError(f"cannot evaluate the leaf {node.op}")
+
+
+def _param_grad(x) -> dict:
+    if isinstance(x, float):
+        return {}
+    return E.gradient(x, ("param",))
+
+
+def _has_field(model, dotted: str) -> bool:
+    *groups, leaf = dotted.split(".")
+    for g in groups:
+        if g not in type(model).model_fields:
+            return False
+        model = getattr(model, g)
+        if not hasattr(type(model), "model_fields"):
+            return False
+    return leaf in type(model).model_fields
+
+
+def _field_value(model, dotted: str):
+    for part in dotted.split("."):
+        model = getattr(model, part)
+    return model
+
+
+def _updated_model(model, fields: dict, path: str):
+    """A validated copy of a component's parameter model with dotted ``fields`` replaced."""
+    from pydantic import ValidationError
+
+    from .component import _describe_validation
+    data = model.model_dump()
+    for dotted, value in fields.items():
+        *groups, leaf = dotted.split(".")
+        node = data
+        for g in groups:
+            node = node[g]
+        node[leaf] = value
+    try:
+        return type(model).model_validate(data)
+    except ValidationError as exc:
+        raise ParameterError(_describe_validation(path, exc, list(type(model).model_fields))) \
+            from None
+
+
+def _field_diffs(new, old, prefix=""):
+    """``(dotted field, new value, old value)`` of the fields where two models differ."""
+    out = []
+    for name in type(old).model_fields:
+        a, b = getattr(new, name), getattr(old, name)
+        if a == b:
+            continue
+        if hasattr(type(a), "model_fields") and type(a) is type(b):
+            out.extend(_field_diffs(a, b, f"{prefix}{name}."))
+        else:
+            out.append((prefix + name, a, b))
+    return out
+
+
+def _starts_of(comp, model) -> dict:
+    """The start values ``comp`` takes from the parameter model ``model``."""
+    values = {}
+    for name, var in type(comp).variables.items():
+        values[name] = var.start(model) if callable(var.start) else var.start
+    values.update(comp.starts(model))
+    values.update(comp._start)
+    return values
+
+
+def build_system(name, equations, infos, subs, observed, events, mode_names, mode_start,
+                 parameters=None, tables=()):
+    """Number the unknowns and parameters, differentiate, generate code, run the checks.
+
+    ``parameters`` maps the names of the runtime parameters to their
+    :class:`~pvgraph.component.ParameterInfo`, in the order of the parameter vector.
+    """
     from .compiler import check_structure
 
+    parameters = dict(parameters or {})
+    pindex = {nm: k for k, nm in enumerate(parameters)}
+    tables = list(tables)
+    for j, tab in enumerate(tables):  # runtime tables follow the parameters in P
+        tab.slot = len(parameters) + j
     names = [nm for nm in infos if nm not in subs]
     index = {nm: i for i, nm in enumerate(names)}
     mode_index = {nm: j for j, nm in enumerate(mode_names)}
+
+    def param_leaf(node):
+        if node.op == "param" and isinstance(node.value, str):
+            return E.Expr("param", (), pindex[node.value])
+        return None
+
+    def numbered(x):
+        return x if isinstance(x, float) else E.substitute([x], param_leaf)[0]
+
+    subs = {nm: (numbered(c), t, numbered(o)) for nm, (c, t, o) in subs.items()}
+
+    def term(coef):
+        return coef if isinstance(coef, E.Expr) else E.const(coef)
 
     def leaf(node):
         if node.op == "sym":
@@ -252,57 +739,73 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
             if node.value in subs:
                 coef, target, off = subs[node.value]
                 if target is None:
-                    return E.const(off)
-                return E.const(coef) * E.Expr("y", (), index[target]) + off
+                    return term(off)
+                return term(coef) * E.Expr("y", (), index[target]) + off
         if node.op == "der":
             if node.value in index:
                 return E.Expr("yp", (), index[node.value])
             if node.value in subs:
                 coef, target, _ = subs[node.value]
-                return E.ZERO if target is None else E.const(coef) * E.Expr("yp", (),
-                                                                            index[target])
-        return None
+                return E.ZERO if target is None else term(coef) * E.Expr("yp", (),
+                                                                          index[target])
+        return param_leaf(node)
 
     res_exprs = E.substitute([eq.expr for eq in equations], leaf)
     labels = [eq.label for eq in equations]
+    del equations
+
+    # every partial derivative of a row in one reverse pass over it
     inc_y, inc_yp = [], []
-    for r in res_exprs:
-        lv = E.leaves(r, ("y", "yp"))
-        inc_y.append(sorted(v for op, v in lv if op == "y"))
-        inc_yp.append(sorted(v for op, v in lv if op == "yp"))
+    entries = []
+    p_entries = []
+    for i, r in enumerate(res_exprs):
+        grads = E.gradient(r)
+        dy, dyp = {}, {}
+        for (op, k), d in grads.items():
+            if op == "y":
+                dy[k] = d
+            elif op == "yp":
+                dyp[k] = d
+            elif not E.is_const(d, 0.0):
+                p_entries.append((i, k, d))
+        inc_y.append(sorted(dy))
+        inc_yp.append(sorted(dyp))
+        for j in sorted(dy.keys() | dyp.keys()):
+            d = dy.get(j, E.ZERO)
+            if j in dyp:
+                d = d + E.CJ * dyp[j]
+            entries.append(_Entry(i, j, d))
     differential = np.zeros(len(names), dtype=bool)
     for cols in inc_yp:
         differential[cols] = True
     check_structure(names, labels, inc_y, inc_yp, differential)
-
-    entries = []
-    memo_y: dict[int, dict] = {}
-    memo_yp: dict[int, dict] = {}
-    for i, r in enumerate(res_exprs):
-        for j in sorted(set(inc_y[i]) | set(inc_yp[i])):
-            dy = E.differentiate(r, ("y", j), memo_y.setdefault(j, {})) \
-                if j in inc_y[i] else E.ZERO
-            dyp = E.differentiate(r, ("yp", j), memo_yp.setdefault(j, {})) \
-                if j in inc_yp[i] else E.ZERO
-            entries.append(_Entry(i, j, dy + E.CJ * dyp))
     entries.sort(key=lambda en: (en.col, en.row))
 
-    res_src, res_tabs = codegen.generate("residual", res_exprs, comments=labels)
+    # parametric subexpressions (constants and parameters only) are computed once per parameter
+    # set, into P after the parameters and runtime tables, not at every call
+    ev_exprs = E.substitute([ev.condition for _, ev in events], leaf) if events else []
+    obs_names = list(observed)
+    obs_exprs = E.substitute([observed[nm][0] for nm in obs_names], leaf) if obs_names else []
+    base = len(parameters) + len(tables)
+    groups = [res_exprs, [en.expr for en in entries], ev_exprs, obs_exprs]
+    (res_h, jac_h, ev_h, obs_h), derived = _hoist(groups, base)
+    der_src, der_tabs = codegen.generate("derive", derived, extra_args=("P",))
+    derive_fn = codegen.compile_function("derive", der_src, der_tabs)
+
+    res_src, res_tabs = codegen.generate("residual", res_h, comments=labels,
+                                         extra_args=("P",))
     jac_src, jac_tabs = codegen.generate(
-        "jacobian", [en.expr for en in entries], extra_args=("c",),
+        "jacobian", jac_h, extra_args=("P", "c"),
         comments=[f"d/d {names[en.col]} of row {en.row}" for en in entries])
     residual_fn = codegen.compile_function("residual", res_src, res_tabs)
     jac_fn = codegen.compile_function("jacobian", jac_src, jac_tabs)
 
-    ev_exprs = E.substitute([ev.condition for _, ev in events], leaf) if events else []
-    ev_src, ev_tabs = codegen.generate("events", ev_exprs,
+    ev_src, ev_tabs = codegen.generate("events", ev_h, extra_args=("P",),
                                        comments=[f"{p}.{ev.name}" for p, ev in events])
     event_fn = codegen.compile_function("events", ev_src, ev_tabs)
 
-    obs_names = list(observed)
-    obs_exprs = E.substitute([observed[nm][0] for nm in obs_names], leaf) if obs_names else []
-    obs_src, obs_tabs = codegen.generate("observed", obs_exprs, flavour="array",
-                                         comments=obs_names)
+    obs_src, obs_tabs = codegen.generate("observed", obs_h, flavour="array",
+                                         extra_args=("P",), comments=obs_names)
     observed_fn = codegen.compile_function("observed", obs_src, obs_tabs)
 
     system = System(
@@ -311,7 +814,18 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
         [infos[nm].unit for nm in names], [infos[nm].description for nm in names], labels,
         [en.row for en in entries], [en.col for en in entries], residual_fn, jac_fn,
         observed_fn, {nm: (observed[nm][1], observed[nm][2]) for nm in obs_names}, event_fn,
-        events, mode_names, mode_start, dict(subs), [res_src, jac_src, ev_src, obs_src])
+        events, mode_names, mode_start, subs, [der_src, res_src, jac_src, ev_src, obs_src])
     system._alias_units = {nm: infos[nm].unit for nm in subs}
+    system._obs_exprs = dict(zip(obs_names, obs_exprs))
+    system.parameters = parameters
+    system._pindex = pindex
+    system._P = [info.value if isinstance(info.value, tuple) else float(info.value)
+                 for info in parameters.values()] + tables + [0.0] * len(derived)
+    system._tables = tables
+    system._derive = derive_fn
+    system._nbase = base
+    system._update_derived()
+    system._lazy["dFdp_entries"] = p_entries
+    system._models = {}
     system.reset_modes()
     return system

@@ -21,8 +21,12 @@ reports, at the optimum ``theta*`` with Jacobian ``J`` of the weighted residuals
 
 The optimiser works on scaled parameters ``z = theta / scale`` (``scale`` defaults to
 ``|initial|``), so one finite-difference step ``diff_step`` is relative for every parameter.
-The model is called once per Jacobian column: it should be deterministic to much better than
-``diff_step`` (a steady state solved to tight tolerance is; a transient at ``rtol=1e-4`` is not).
+Without a Jacobian the model is called once per Jacobian column: it should be deterministic to
+much better than ``diff_step`` (a steady state solved to tight tolerance is; a transient at
+``rtol=1e-4`` is not). With ``jacobian`` (or a ``predict.jacobian`` method) the derivatives
+d predict / d theta come from the model itself, e.g. exact steady-state sensitivities
+``dy/dp = -F_y^-1 F_p`` from the compiled parameter derivative
+(:meth:`pvgraph.analysis.OperatingPoint.sensitivity`), for the search and for the intervals.
 
 References
 ----------
@@ -115,6 +119,7 @@ class CalibrationResult:
     unidentifiable: list[str] = field(default_factory=list)
     singular_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
     wall_time: float = 0.0
+    njev: int = 0           # model Jacobian evaluations (0: finite differences)
 
     @property
     def names(self) -> list[str]:
@@ -244,7 +249,8 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
               confidence: float = 0.95, diff_step: float = DIFF_STEP, max_nfev: int | None = None,
               xtol: float = 1e-6, ftol: float = 1e-6, rcond: float = RCOND,
               cov_step: float = COV_STEP,
-              progress: Callable[[int, float], None] | None = None) -> CalibrationResult:
+              progress: Callable[[int, float], None] | None = None,
+              jacobian: Callable[[dict], np.ndarray] | None = None) -> CalibrationResult:
     """Fit ``parameters`` so that ``predict(theta)`` matches ``measured`` in weighted least squares.
 
     Parameters
@@ -274,6 +280,10 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
         the central-difference step used to compute that Jacobian at the optimum.
     progress : callable, optional
         ``progress(nfev, cost)`` after every model evaluation.
+    jacobian : callable, optional
+        ``jacobian({name: value}) -> (len(measured), len(parameters))`` array of
+        d predict / d theta (physical units). Default: ``predict.jacobian`` if the model has
+        one, else finite differences.
 
     Returns
     -------
@@ -336,10 +346,32 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
             progress(counter["nfev"], 0.5 * float(r @ r))
         return r
 
+    if jacobian is None:
+        jacobian = getattr(predict, "jacobian", None)
+    counter["njev"] = 0
+
+    def model_jac(z):
+        theta = dict(zip(names, (z * scale).tolist()))
+        counter["njev"] += 1
+        try:
+            J = np.asarray(jacobian(theta), dtype=float)
+        except PvgraphError:
+            return None
+        if J.shape != (m, n):
+            raise CalibrationError(f"jacobian returned shape {J.shape}, expected {(m, n)}")
+        return J * scale[None, :]
+
+    def jac(z):
+        J = model_jac(z)
+        if J is None or not np.all(np.isfinite(J)):
+            return np.zeros((m, n))   # a failed point: its penalty residual is constant
+        return J / s[:, None]
+
     t0 = time.perf_counter()
     res = optimize.least_squares(fun, z0, bounds=(lo, hi), method="trf", x_scale=1.0,
                                  diff_step=diff_step, xtol=xtol, ftol=ftol, gtol=1e-10,
-                                 max_nfev=max_nfev)
+                                 max_nfev=max_nfev,
+                                 jac=jac if jacobian is not None else "2-point")
     theta = res.x * scale
     r = np.asarray(res.fun, dtype=float)       # the weighted residuals at the optimum
     if np.all(r == penalty):
@@ -350,7 +382,14 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
 
     # Inference uses a central-difference Jacobian at the optimum (truncation O(h^2)), not the
     # optimiser's forward differences, so a rank-deficient direction shows as such.
-    Jz = _central_jacobian(evaluate, res.x, pred, lo, hi, cov_step) / s[:, None]
+    if jacobian is not None:
+        Jz = model_jac(res.x)
+        if Jz is None or not np.all(np.isfinite(Jz)):
+            raise CalibrationError("the model's jacobian fails at the optimum; cannot estimate "
+                                   "the confidence intervals")
+        Jz = Jz / s[:, None]
+    else:
+        Jz = _central_jacobian(evaluate, res.x, pred, lo, hi, cov_step) / s[:, None]
     _, sv, Vt = np.linalg.svd(Jz, full_matrices=False)
     keep = sv > rcond * (sv[0] if sv.size and sv[0] > 0 else 1.0)
     inv = np.where(keep, 1.0 / np.where(keep, sv, 1.0) ** 2, 0.0)
@@ -374,4 +413,4 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
         measured=y, sigma=s, predicted_initial=pred0, predicted=pred,
         cost_initial=0.5 * float(r0 @ r0), cost=cost, dof=dof, nfev=counter["nfev"],
         success=bool(res.success), message=str(res.message), unidentifiable=unident,
-        singular_values=sv, wall_time=wall)
+        singular_values=sv, wall_time=wall, njev=counter["njev"])

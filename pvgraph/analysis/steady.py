@@ -33,15 +33,52 @@ class OperatingPoint:
     iterations: int = 0
     method: str = "newton"
     info: dict = field(default_factory=dict)
+    _observed: dict | None = field(default=None, repr=False, compare=False)
 
     def __getitem__(self, name: str) -> float:
         """The value of an unknown, an eliminated alias or a derived output (``v.observe``)."""
         if name in self.system.observed:
-            vals = self.system.evaluate_observed(np.array([self.t]), self.y[None, :],
-                                                 self.yp[None, :], [self.system.modes])
-            return float(vals[name][0])
+            if self._observed is None:
+                self._observed = self.system.evaluate_observed(
+                    np.array([self.t]), self.y[None, :], self.yp[None, :], [self.system.modes])
+            return float(self._observed[name][0])
         coef, idx, off = self.system.resolve(name)
         return float(off if idx is None else coef * self.y[idx] + off)
+
+    def state_sensitivity(self, params=None) -> np.ndarray:
+        """dy/dp at this steady state, ``(n, len(params))``: the solution of F_y S = -F_p.
+
+        ``F_p`` is the compiled parameter derivative dF/dp; one factorisation of F_y serves
+        every parameter. ``params`` defaults to every runtime parameter of the system.
+        """
+        s = self.system
+        Fp = s.parameter_jacobian(self.t, self.y, self.yp, params)
+        return self.solve_linear(-Fp)
+
+    def solve_linear(self, rhs) -> np.ndarray:
+        """Solve ``F_y X = rhs`` with the steady Jacobian ``F_y = dF/dy`` at this point."""
+        s = self.system
+        if s.n <= s.DENSE_MAX:
+            J = s.jacobian_dense(self.t, self.y, self.yp, 0.0)
+            return np.linalg.solve(J, rhs)
+        from scipy.sparse.linalg import splu
+        lu = splu(s.jacobian(self.t, self.y, self.yp, 0.0).tocsc())
+        return lu.solve(np.asarray(rhs, dtype=float))
+
+    def sensitivity(self, outputs, params=None, *, dy_dp=None) -> np.ndarray:
+        """d output / d parameter at this steady state, ``(len(outputs), len(params))``.
+
+        ``outputs`` are names of unknowns, aliases or derived outputs; ``params`` parameter
+        names (default: all). The steady state moves with the parameters: ``d out/dp =
+        d out/dy dy/dp + d out/dp`` with ``dy/dp = -F_y^-1 F_p`` (:meth:`state_sensitivity`).
+        """
+        s = self.system
+        S = self.state_sensitivity(params) if dy_dp is None else dy_dp
+        rows = []
+        for name in outputs:
+            gy, gp = s.output_gradient(name, self.t, self.y, self.yp, params)
+            rows.append(gy @ S + gp)
+        return np.array(rows).reshape(len(rows), S.shape[1])
 
 
 class _Scaled:
@@ -149,7 +186,8 @@ def _culprits(system, sc, y, k=6):
 
 
 def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
-                 max_iter: int = 50, continuation: bool = True) -> OperatingPoint:
+                 max_iter: int = 50, continuation: bool = True,
+                 params=None) -> OperatingPoint:
     """Solve ``F(t, y, 0) = 0`` for a steady operating point of ``system``.
 
     Parameters
@@ -160,6 +198,9 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
         Tolerance on the max-norm of the scaled residual.
     continuation : bool
         Fall back to pseudo-transient continuation when Newton fails.
+    params : dict, optional
+        Parameter values by name, applied with :meth:`System.with_params` (no compilation);
+        the operating point's ``system`` carries them.
 
     Raises
     ------
@@ -167,6 +208,8 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
         No steady state found; the message names the equations with the largest scaled
         residual and the variables they depend on most.
     """
+    if params:
+        system = system.with_params(params)
     y = np.array(system.y0 if y0 is None else y0, dtype=float)
     if system.n == 0:
         return OperatingPoint(y, np.zeros(0), system, t, 0.0, 0, "trivial")

@@ -103,8 +103,13 @@ def test_jacobian_pattern_and_sparse_form_agree():
 
 
 def test_generated_source_is_readable():
-    src = demo(Orifice(A=mm2(2))).compile().source()
-    assert "def residual(t, y, yp, d):" in src
+    system = demo(Orifice(A=mm2(2))).compile()
+    src = system.source()
+    assert "def residual(t, y, yp, d, P):" in src
+    k = system.parameter_names.index("orifice.A")
+    assert f"# P[{k}] = orifice.A [m^2]" in src
+    # parametric subexpressions are computed once per parameter set, in derive()
+    assert f"P[{k}]" in src.split("def derive")[1].split("def residual")[0]
     assert "orifice equation 1 (Orifice)" in src
 
 
