@@ -211,7 +211,7 @@ class RigSteadyModel:
         self.compilations = 0
         self._compiled: list = []   # compiled systems, one per structure met
         self._last = None   # (theta items, {cfg: OperatingPoint})
-        self._maps: dict = {}
+        self._maps: dict = {}     # (load, compiled) -> (theta, map)
 
     def __enter__(self):
         return self
@@ -247,22 +247,30 @@ class RigSteadyModel:
         ops = {}
         for cfg in self.configs:
             system = self._system(cfg, _rig_circuit(p, cfg))
-            y0 = self.warm.get(cfg)
-            start = y0 if y0 is not None and len(y0) == system.n else None
-            op = steady_state(system, y0=start, tol=STEADY_TOL)
+            op = steady_state(system, y0=self._start(cfg, system), tol=STEADY_TOL)
             self.warm[cfg] = op.y
             ops[cfg] = op
         self._last = (key, ops)
         return ops
+
+    def _start(self, cfg, system):
+        """Warm start: this configuration's last steady state, else the nearest solved one of
+        the same structure (same L2 state), else the system's start values."""
+        y0 = self.warm.get(cfg)
+        if y0 is not None and len(y0) == system.n:
+            return y0
+        near = [c for c in self.warm if c[3] == cfg[3] and len(self.warm[c]) == system.n]
+        if near:
+            best = min(near, key=lambda c: (abs(c[0] - cfg[0]), c[1:] != cfg[1:]))
+            return self.warm[best]
+        return None
 
     def steady(self, p: PVG32Params) -> dict:
         """Steady values of every configuration at the parameters ``p``."""
         out = {}
         for cfg in self.configs:
             system = self._system(cfg, _rig_circuit(p, cfg))
-            y0 = self.warm.get(cfg)
-            start = y0 if y0 is not None and len(y0) == system.n else None
-            op = steady_state(system, y0=start, tol=STEADY_TOL)
+            op = steady_state(system, y0=self._start(cfg, system), tol=STEADY_TOL)
             self.warm[cfg] = op.y
             out[cfg] = _values(op)
         return out
@@ -289,39 +297,46 @@ class RigSteadyModel:
 
     def _parameter_map(self, cfg, compiled, theta, names):
         """How the compiled system's parameters move with theta: per fitted parameter either
-        ``("scalar", {name: d value / d theta})`` or ``("table", up values, down values)``.
+        ``("scalar", {name: d value / d theta})`` or ``("table", up values, down values, h)``.
 
-        From differences of the rig build, which is cheap and exact for the linear maps most
-        parameters have. The input voltage does not depend on theta, so configurations that
-        differ in it alone share one map.
+        From differences of the rig build, which is cheap. The rig's scalar component
+        parameters are linear in the fitted ones (a load constant, the pump flow, the supply
+        voltage of the PVE), so their slopes are kept from the first theta; a fitted parameter
+        that moves a table (the supply voltage reshapes the A_H fit) is differenced at every
+        theta. The input voltage does not depend on theta, so configurations that differ in it
+        alone share one map.
         """
-        key = (tuple(sorted(theta.items())), cfg[1:], id(compiled))
-        if key in self._maps:
-            return self._maps[key]
+        group = (cfg[1:], id(compiled))
+        theta_key = tuple(sorted(theta.items()))
+        cached = self._maps.get(group)
+        if cached is not None and (cached[0] == theta_key or
+                                   all(e[0] == "scalar" for e in cached[1])):
+            return cached[1]
         base = compiled.parameters
 
         def full(values, nm):
             return values.get(nm, base[nm].value)
 
-        p = self.params(theta)
-        here = compiled.params_from(_rig_circuit(p, cfg))
+        def build(th):
+            return compiled.params_from(_rig_circuit(self.params(th), cfg))
+
+        here = build(theta)
         out = []
-        for name in names:
+        for k, name in enumerate(names):
+            if cached is not None and cached[1][k][0] == "scalar":
+                out.append(cached[1][k])
+                continue
             h = self.MAP_STEP * max(abs(theta[name]), 1e-300)
-            there = compiled.params_from(_rig_circuit(self.params({**theta, name:
-                                                                   theta[name] + h}), cfg))
+            there = build({**theta, name: theta[name] + h})
             changed = {nm for nm in set(here) | set(there)
                        if full(there, nm) != full(here, nm)}
             if all(isinstance(base[nm].value, float) for nm in changed):
                 out.append(("scalar", {nm: (full(there, nm) - full(here, nm)) / h
-                                       for nm in changed if not nm.startswith("U_input.")}))
+                                       for nm in changed}))
                 continue
-            back = compiled.params_from(_rig_circuit(self.params({**theta, name:
-                                                                  theta[name] - h}), cfg))
+            back = build({**theta, name: theta[name] - h})
             out.append(("table", there, back, h))
-        if any(k[0] != key[0] for k in self._maps):
-            self._maps = {}   # only the current theta is worth keeping
-        self._maps[key] = out
+        self._maps[group] = (theta_key, out)
         return out
 
     def _config_jacobian(self, cfg, op, p, theta, names) -> dict:
@@ -332,8 +347,7 @@ class RigSteadyModel:
         dF = np.zeros((system.n, len(names)))
         dout = np.zeros((len(outputs), len(names)))
         scalar_cols: dict[str, np.ndarray] = {}
-        key = (tuple(sorted(theta.items())), cfg[1:], id(compiled))
-        maps = self._maps.get(key) or self._parameter_map(cfg, compiled, theta, names)
+        maps = self._parameter_map(cfg, compiled, theta, names)
         for k, (name, entry) in enumerate(zip(names, maps)):
             if entry[0] == "scalar":
                 for nm, slope in entry[1].items():
