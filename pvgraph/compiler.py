@@ -21,6 +21,7 @@ alias elimination, each volume contributes its own flow unknown, and the DAE sta
 
 from __future__ import annotations
 
+import gc
 import zlib
 from dataclasses import dataclass
 
@@ -72,6 +73,18 @@ def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True):
     """
     if not isinstance(circuit, Circuit):
         raise CircuitError(f"compile() takes a Circuit, got {type(circuit).__name__}")
+    # Expression graphs are acyclic and freed by reference counting; the cyclic collector would
+    # rescan every node of a large circuit again and again while the graphs are built
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        return _compile(circuit, eliminate_aliases)
+    finally:
+        if enabled:
+            gc.enable()
+
+
+def _compile(circuit, eliminate_aliases):
     leaves = _flatten(circuit)
     if not leaves:
         raise CircuitError(f"circuit {circuit.name!r} has no components")
@@ -281,8 +294,8 @@ def _affine(e: E.Expr):
     Coefficients and the constant are floats, or parametric expressions (constants and runtime
     parameters) where they depend on parameters.
     """
-    nodes = E.postorder([e])
-    if len(nodes) > MAX_AFFINE_NODES:
+    nodes = E.postorder([e], MAX_AFFINE_NODES)
+    if nodes is None:
         return None
     form: dict[int, tuple[dict, object]] = {}
     for n in nodes:
@@ -395,9 +408,11 @@ def _eliminate_aliases(equations, infos, subs, values):
     ``values`` holds the parameters' compile-time values (for carrying start values).
     """
     used_der: set[str] = set()
+    names_of = []   # the variables (values or derivatives) each equation reads
     for eq in equations:
-        for op, name in E.leaves(eq.expr, ("der",)):
-            used_der.add(name)
+        found = E.leaves(eq.expr, ("sym", "der"))
+        used_der.update(name for op, name in found if op == "der")
+        names_of.append({name for _, name in found})
 
     def num(x):
         return x if isinstance(x, float) else E.evaluate(x, values)
@@ -416,16 +431,28 @@ def _eliminate_aliases(equations, infos, subs, values):
         return (info.start_priority, name in used_der, name.count(".") == 2 and
                 name.endswith((".p", ".x")), -len(name))
 
-    remaining = list(equations)
+    # Passes over the equations in order until nothing is eliminated. An equation none of whose
+    # variables was eliminated since it was last looked at gives the same answer again, so it is
+    # skipped: each pass costs the equations that changed, not the circuit.
+    remaining = [[eq, eq.expr, names_of[i], True] for i, eq in enumerate(equations)]
     other = None
     changed = True
     while changed:
         changed = False
         keep = []
-        for eq in remaining:
-            form = _affine(_apply(eq.expr, subs, resolve))
+        for item in remaining:
+            eq, expr, names, fresh = item
+            if any(nm in subs for nm in names):
+                expr = _apply(expr, subs, resolve)
+                names = {name for _, name in E.leaves(expr, ("sym", "der"))}
+                item[1], item[2], fresh = expr, names, True
+            if not fresh:
+                keep.append(item)
+                continue
+            item[3] = False
+            form = _affine(expr)
             if form is None:
-                keep.append(eq)
+                keep.append(item)
                 continue
             coeffs, k = form
             if not all(isinstance(w, float) for w in coeffs.values()):
@@ -447,7 +474,7 @@ def _eliminate_aliases(equations, infos, subs, values):
             if len(coeffs) == 1:
                 (v, a), = coeffs.items()
                 if not isinstance(a, float):
-                    keep.append(eq)
+                    keep.append(item)
                     continue
                 off = _kdiv(_kneg(k), a)
                 subs[v] = (0.0, None, off)
@@ -460,7 +487,7 @@ def _eliminate_aliases(equations, infos, subs, values):
                     order.reverse()
                 (u, a), (w, b) = order
                 if not isinstance(a, float):
-                    keep.append(eq)
+                    keep.append(item)
                     continue
                 # eliminate u: u = -(b*w + k)/a
                 coef, off = _kdiv(_kneg(b), a), _kdiv(_kneg(k), a)
@@ -468,11 +495,16 @@ def _eliminate_aliases(equations, infos, subs, values):
                 _set_start(infos, u, w, num(coef), num(off))
                 changed = True
                 continue
-            keep.append(eq)
+            keep.append(item)
         remaining = keep
     for name in subs:
         subs[name] = resolve(name)
-    return [_Equation(_apply(eq.expr, subs, resolve), eq.origin, eq.label) for eq in remaining]
+    out = []
+    for eq, expr, names, _ in remaining:
+        if any(nm in subs for nm in names):
+            expr = _apply(expr, subs, resolve)
+        out.append(_Equation(expr, eq.origin, eq.label))
+    return out
 
 
 def _set_start(infos, elim, keep, coef, off):

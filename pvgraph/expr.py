@@ -627,8 +627,11 @@ def interp(table: Table, x) -> Expr:
 
 # graph utilities ----------------------------------------------------------------------------
 
-def postorder(roots: Iterable[Expr]):
-    """Every node reachable from ``roots``, children before parents, each once."""
+def postorder(roots: Iterable[Expr], limit: int | None = None):
+    """Every node reachable from ``roots``, children before parents, each once.
+
+    With ``limit``, ``None`` as soon as there are more than ``limit`` nodes.
+    """
     seen: set[int] = set()
     order: list[Expr] = []
     for root in roots:
@@ -641,6 +644,8 @@ def postorder(roots: Iterable[Expr]):
             if id(node) in seen:
                 continue
             seen.add(id(node))
+            if limit is not None and len(seen) > limit:
+                return None
             stack.append((node, True))
             for arg in reversed(node.args):
                 if id(arg) not in seen:
@@ -768,6 +773,13 @@ def gradient(root: Expr, ops: tuple[str, ...] = ("y", "yp", "param")) -> dict:
     derivative may fold to zero).
     """
     order = postorder([root])
+    # subtrees of constants and parameters only need no adjoints unless parameters are asked for
+    skip: set[int] = set()
+    if "param" not in ops:
+        for node in order:
+            if node.op in FIXED_LEAVES or (node.op not in LEAVES and
+                                            all(id(a) in skip for a in node.args)):
+                skip.add(id(node))
     adj: dict[int, Expr] = {id(root): ONE}
     grads: dict = {}
     for node in reversed(order):  # parents before children
@@ -778,11 +790,15 @@ def gradient(root: Expr, ops: tuple[str, ...] = ("y", "yp", "param")) -> dict:
                 key = (op, node.value)
                 grads[key] = _add(grads[key], a) if key in grads else a
             continue
+        if id(node) in skip:
+            continue
         if is_const(a, 0.0):
             for x in node.args:  # keep the incidence of every leaf below
                 _touch(adj, x)
             continue
         for child, contrib in _adjoints(node, a):
+            if id(child) in skip:
+                continue
             k = id(child)
             old = adj.get(k)
             adj[k] = contrib if old is None else _add(old, contrib)

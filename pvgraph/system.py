@@ -179,20 +179,27 @@ class System:
     def solver_events(self):
         """The declared events as :class:`pvgraph.solver.Event` objects bound to this system."""
         from .solver import Event
+        fn, modes, P = self._event_fn, self.modes, self._P
+
+        def g_all(t, y, yp):
+            return fn(t, y.tolist(), yp.tolist(), modes, P)
+
         out = []
         for k, (path, spec) in enumerate(self.event_specs):
-            out.append(Event(fun=self._event_component(k), direction=spec.direction,
+            out.append(Event(fun=self._event_component(k, g_all), direction=spec.direction,
                              terminal=spec.terminal,
                              action=self._event_action(path, spec), name=f"{path}.{spec.name}"))
         return out
 
-    def _event_component(self, k):
+    def _event_component(self, k, g_all):
         fn = self._event_fn
         modes = self.modes
         P = self._P
 
         def g(t, y, yp):
             return fn(t, y.tolist(), yp.tolist(), modes, P)[k]
+
+        g.vector = (g_all, k)   # the solver evaluates every event in one call of g_all
         return g
 
     def _event_action(self, path, spec):
@@ -463,7 +470,11 @@ class System:
         return cols
 
     def _generate_dfdp(self):
-        entries = self._lazy.pop("dFdp_entries")
+        entries = []
+        for i, r in enumerate(self._lazy.pop("residual_exprs")):
+            for (op, k), d in E.gradient(r, ("param",)).items():
+                if not E.is_const(d, 0.0):
+                    entries.append((i, k, d))
         self._lazy["dFdp_pattern"] = (np.array([r for r, _, _ in entries], dtype=np.int64),
                                       np.array([k for _, k, _ in entries], dtype=np.int64))
         src, tabs = codegen.generate("param_jacobian", [d for _, _, d in entries],
@@ -757,17 +768,14 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     # every partial derivative of a row in one reverse pass over it
     inc_y, inc_yp = [], []
     entries = []
-    p_entries = []
     for i, r in enumerate(res_exprs):
-        grads = E.gradient(r)
+        grads = E.gradient(r, ("y", "yp"))
         dy, dyp = {}, {}
         for (op, k), d in grads.items():
             if op == "y":
                 dy[k] = d
-            elif op == "yp":
+            else:
                 dyp[k] = d
-            elif not E.is_const(d, 0.0):
-                p_entries.append((i, k, d))
         inc_y.append(sorted(dy))
         inc_yp.append(sorted(dyp))
         for j in sorted(dy.keys() | dyp.keys()):
@@ -825,7 +833,7 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     system._derive = derive_fn
     system._nbase = base
     system._update_derived()
-    system._lazy["dFdp_entries"] = p_entries
+    system._lazy["residual_exprs"] = res_exprs   # for dF/dp, differentiated when first asked
     system._models = {}
     system.reset_modes()
     return system

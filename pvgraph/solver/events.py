@@ -90,18 +90,40 @@ def normalize_events(events):
     return out
 
 
+def _shared_vector(events):
+    """``(g_all, indices)`` if every event function is one entry of one vector function.
+
+    An event function may carry ``fun.vector = (g_all, k)``: ``g_all(t, y, yp)`` returns every
+    event value of a system at once (one generated function), and this event is entry ``k``.
+    """
+    if not events:
+        return None
+    tags = [getattr(ev.fun, "vector", None) for ev in events]
+    if any(tag is None for tag in tags) or len({id(tag[0]) for tag in tags}) != 1:
+        return None
+    return tags[0][0], np.array([tag[1] for tag in tags], dtype=np.int64)
+
+
 class EventTracker:
-    """Event function values across steps, and location of crossings within a step."""
+    """Event function values across steps, and location of crossings within a step.
+
+    When the events are entries of one vector function (see :func:`_shared_vector`), every
+    evaluation is one call of it, whatever the number of events.
+    """
 
     def __init__(self, events):
         self.events = events
         self.m = len(events)
         self.g = np.zeros(self.m)
         self.nroot = 0
+        self._vector = _shared_vector(events)
 
     def evaluate(self, t, y, yp):
         """Return all event function values at (t, y, yp)."""
         self.nroot += self.m
+        if self._vector is not None:
+            g_all, idx = self._vector
+            return np.asarray(g_all(t, y, yp), dtype=float)[idx]
         return np.array([float(ev.fun(t, y, yp)) for ev in self.events])
 
     def reset(self, t, y, yp, unknown=()):
@@ -121,11 +143,21 @@ class EventTracker:
             t_probe = t_old + SIGN_PROBE * (t_new - t_old)
             y, yp = interp(t_probe)
             g_old = g_old.copy()
-            for i in np.flatnonzero(zero):
-                self.nroot += 1
-                g_old[i] = float(self.events[i].fun(t_probe, y, yp))
+            if self._vector is not None:
+                self.nroot += self.m
+                g_probe = self.evaluate(t_probe, y, yp)
+                g_old[zero] = g_probe[zero]
+            else:
+                for i in np.flatnonzero(zero):
+                    self.nroot += 1
+                    g_old[i] = float(self.events[i].fun(t_probe, y, yp))
         found = []
-        for i, ev in enumerate(self.events):
+        g_new = np.asarray(g_new)
+        # only the events whose sign changed are looked at one by one
+        candidates = np.flatnonzero(((g_old < 0.0) & (g_new >= 0.0)) |
+                                    ((g_old > 0.0) & (g_new <= 0.0)))
+        for i in candidates.tolist():
+            ev = self.events[i]
             a, b = g_old[i], g_new[i]
             rising = a < 0.0 <= b
             falling = a > 0.0 >= b
