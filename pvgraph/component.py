@@ -329,7 +329,7 @@ class ParamSymbols(_ModelView):
 
     def _leaf(self, name, value):
         self._registry[name].in_equations = True
-        trace = E.ParameterTrace.active
+        trace = E.active_trace()
         if trace is not None:
             return trace.leaf(name, value)
         return E.Expr("param", (), name)

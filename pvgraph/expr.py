@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import bisect
 import math
+import threading
 from typing import Iterable
 
 import numpy as np
@@ -34,7 +35,7 @@ import numpy as np
 __all__ = [
     "Expr", "Table", "const", "as_expr", "sqrt", "exp", "log", "tanh", "sin", "cos", "atan",
     "fabs", "where", "minimum", "maximum", "clip", "interp", "is_const", "leaves",
-    "differentiate", "gradient", "evaluate", "ParameterTrace", "is_parametric",
+    "differentiate", "gradient", "evaluate", "ParameterTrace", "active_trace", "is_parametric",
 ]
 
 # Operators and their arity. Leaves: const, sym (a named variable before compilation), der (its
@@ -127,9 +128,9 @@ class Expr:
     def __eq__(self, other):
         # ``p.x == 0`` on a traced parameter compares values (a structural use); expressions
         # otherwise compare by identity so that they can live in sets and dicts
-        if not isinstance(other, Expr) and ParameterTrace.active is not None and \
+        if not isinstance(other, Expr) and active_trace() is not None and \
                 isinstance(other, (int, float)) and is_parametric(self):
-            return ParameterTrace.active.number(self, "compared with ==") == other
+            return active_trace().number(self, "compared with ==") == other
         return self is other
 
     def __ne__(self, other):
@@ -137,8 +138,8 @@ class Expr:
         return not result
 
     def __bool__(self):
-        if ParameterTrace.active is not None and is_parametric(self):
-            return bool(ParameterTrace.active.number(self, "used in a Python `if`/`and`/`or`/"
+        if active_trace() is not None and is_parametric(self):
+            return bool(active_trace().number(self, "used in a Python `if`/`and`/`or`/"
                                                            "`min`/`max`"))
         raise TypeError(
             "an equation branched on a symbolic value with a Python `if` (or `and`/`or`/`min`/"
@@ -148,8 +149,8 @@ class Expr:
     def __float__(self):
         if self.op == "const":
             return float(self.value)
-        if ParameterTrace.active is not None and is_parametric(self):
-            return float(ParameterTrace.active.number(self, "converted to a number (float(), "
+        if active_trace() is not None and is_parametric(self):
+            return float(active_trace().number(self, "converted to a number (float(), "
                                                             "math.*, a table)"))
         raise TypeError(f"cannot convert a symbolic expression to float: {self!r}")
 
@@ -157,8 +158,8 @@ class Expr:
         return int(float(self))
 
     def __index__(self):
-        if ParameterTrace.active is not None and is_parametric(self):
-            return int(ParameterTrace.active.number(self, "used as an integer"))
+        if active_trace() is not None and is_parametric(self):
+            return int(active_trace().number(self, "used as an integer"))
         raise TypeError(f"cannot use a symbolic expression as an integer: {self!r}")
 
     def __round__(self, ndigits=None):
@@ -166,6 +167,14 @@ class Expr:
 
     def __repr__(self):
         return to_text(self)
+
+
+_LOCAL = threading.local()   # the trace active in this thread
+
+
+def active_trace() -> "ParameterTrace | None":
+    """The :class:`ParameterTrace` of the compilation running in this thread, if any."""
+    return getattr(_LOCAL, "trace", None)
 
 
 class ParameterTrace:
@@ -176,8 +185,6 @@ class ParameterTrace:
     every parameter in it is recorded in :attr:`structural` with the reason, under the label
     of :attr:`where` (the component being traced).
     """
-
-    active: "ParameterTrace | None" = None
 
     def __init__(self, values: dict):
         self.values = values
@@ -195,14 +202,14 @@ class ParameterTrace:
         return node
 
     def __enter__(self):
-        self._outer = ParameterTrace.active
-        ParameterTrace.active = self
+        self._outer = active_trace()
+        _LOCAL.trace = self
         if self._outer is None:
             _patch_math()
         return self
 
     def __exit__(self, *exc):
-        ParameterTrace.active = self._outer
+        _LOCAL.trace = self._outer
         if self._outer is None:
             _unpatch_math()
 
@@ -217,7 +224,9 @@ class ParameterTrace:
 # accept expressions and return expressions (``math.sqrt(2 / p.rho)`` in a component stays a
 # function of the runtime parameter); on numbers they are the ``math`` functions themselves.
 _MATH_NAMES = ("sqrt", "exp", "log", "tanh", "sin", "cos", "atan", "fabs")
-_MATH_SAVED: dict = {}
+_MATH_ORIGINAL = {name: getattr(math, name) for name in _MATH_NAMES}
+_MATH_LOCK = threading.Lock()
+_MATH_USERS = [0]   # compilations running (in any thread) that need the symbolic versions
 
 
 def _symbolic_math(name, original):
@@ -230,17 +239,23 @@ def _symbolic_math(name, original):
     return fn
 
 
+_MATH_SYMBOLIC = {name: _symbolic_math(name, fn) for name, fn in _MATH_ORIGINAL.items()}
+
+
 def _patch_math():
-    for name in _MATH_NAMES:
-        original = getattr(math, name)
-        _MATH_SAVED[name] = original
-        setattr(math, name, _symbolic_math(name, original))
+    with _MATH_LOCK:
+        _MATH_USERS[0] += 1
+        if _MATH_USERS[0] == 1:
+            for name, fn in _MATH_SYMBOLIC.items():
+                setattr(math, name, fn)
 
 
 def _unpatch_math():
-    for name, original in _MATH_SAVED.items():
-        setattr(math, name, original)
-    _MATH_SAVED.clear()
+    with _MATH_LOCK:
+        _MATH_USERS[0] -= 1
+        if _MATH_USERS[0] == 0:
+            for name, fn in _MATH_ORIGINAL.items():
+                setattr(math, name, fn)
 
 
 class ParamValues(tuple):
@@ -257,7 +272,7 @@ class ParamValues(tuple):
         return self
 
     def _structural(self):
-        trace = ParameterTrace.active
+        trace = active_trace()
         if trace is not None:
             trace.structural.setdefault(
                 self.name, f"read element by element in {trace.where}" if trace.where else
@@ -319,8 +334,8 @@ class Table:
             x = x.raw
         if isinstance(y, ParamValues):
             y = y.raw
-        if any(self.sources) and ParameterTrace.active is not None:
-            ParameterTrace.active.tables.append(self)
+        if any(self.sources) and active_trace() is not None:
+            active_trace().tables.append(self)
         x = np.asarray(x, dtype=float)
         y = np.asarray(y, dtype=float)
         if x.ndim != 1 or y.shape != x.shape or x.size < 2:

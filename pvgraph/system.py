@@ -259,7 +259,7 @@ class System:
         with np.errstate(all="ignore"):
             d = [np.asarray(m) for m in np.asarray(modes_per_time, dtype=float).T] \
                 if len(self.mode_names) else []
-            vals = self._obs(np.asarray(t), list(Y.T), list(YP.T), d, self._P)
+            vals = self._observed_fn()(np.asarray(t), list(Y.T), list(YP.T), d, self._P)
         m = len(t)
         return {nm: np.broadcast_to(np.asarray(v, dtype=float), (m,)).copy()
                 for nm, v in zip(self.observed, vals)}
@@ -555,11 +555,24 @@ class System:
             for path, model in saved.items():
                 comps[path].params = model
 
+    def _observed_fn(self):
+        fn = self._lazy.get("observed_fn")
+        if fn is None:
+            exprs, names = self._lazy["observed_exprs"]
+            src, tabs = codegen.generate("observed", exprs, flavour="array", extra_args=("P",),
+                                         comments=names)
+            self._lazy["observed_src"] = src
+            fn = self._lazy["observed_fn"] = codegen.compile_function("observed", src, tabs)
+        return fn
+
     def source(self) -> str:
         """The generated Python source of the residual, Jacobian, events and outputs."""
         head = "".join(f"# P[{k}] = {nm} [{info.unit}]\n"
                        for k, (nm, info) in enumerate(self.parameters.items()))
-        return head + "\n" + "\n\n".join(self._sources)
+        if self.observed:
+            self._observed_fn()
+        extra = [self._lazy[k] for k in ("observed_src",) if k in self._lazy]
+        return head + "\n" + "\n\n".join(list(self._sources) + extra)
 
     def __repr__(self):
         return (f"<System {self.name}: {self.n} unknowns ({int(self.differential.sum())} "
@@ -577,41 +590,42 @@ def _hoist(groups, base):
     """
     roots = [r for g in groups for r in g]
     order = E.postorder(roots)
+    fixed_leaves = E.FIXED_LEAVES
     fixed: dict[int, bool] = {}
-    for node in order:
-        op = node.op
-        if op in E.LEAVES:
-            fixed[id(node)] = op in E.FIXED_LEAVES
-        else:
-            fixed[id(node)] = all(fixed[id(a)] for a in node.args)
     hoist: set[int] = set()
-
-    def worth(node):
-        return fixed[id(node)] and node.op not in E.LEAVES
-
     for node in order:
-        if not fixed[id(node)]:
-            for a in node.args:
-                if worth(a):
-                    hoist.add(id(a))
+        args = node.args
+        if not args:
+            fixed[id(node)] = node.op in fixed_leaves
+            continue
+        flags = [fixed[id(a)] for a in args]
+        if all(flags):
+            fixed[id(node)] = True
+            continue
+        fixed[id(node)] = False
+        for a, f in zip(args, flags):   # a parametric child of a varying node: hoist it
+            if f and a.args:
+                hoist.add(id(a))
     for r in roots:
-        if worth(r):
+        if fixed[id(r)] and r.args:
             hoist.add(id(r))
     derived: list = []
-    slot_of: dict[int, E.Expr] = {}
     memo: dict[int, E.Expr] = {}
     for node in order:
         k = id(node)
         if k in hoist:
-            slot_of[k] = E.Expr("param", (), base + len(derived))
+            memo[k] = E.Expr("param", (), base + len(derived))
             derived.append(node)
-            memo[k] = slot_of[k]
-        elif node.op in E.LEAVES or fixed[k]:
+        elif fixed[k] or not node.args:
             memo[k] = node
         else:
-            args = tuple(memo[id(a)] for a in node.args)
-            memo[k] = node if all(x is y for x, y in zip(args, node.args)) else \
-                E.Expr(node.op, args, node.value)
+            args = tuple([memo[id(a)] for a in node.args])
+            same = True
+            for x, y in zip(args, node.args):
+                if x is not y:
+                    same = False
+                    break
+            memo[k] = node if same else E.Expr(node.op, args, node.value)
     return [[memo[id(r)] for r in g] for g in groups], derived
 
 
@@ -812,9 +826,7 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
                                        comments=[f"{p}.{ev.name}" for p, ev in events])
     event_fn = codegen.compile_function("events", ev_src, ev_tabs)
 
-    obs_src, obs_tabs = codegen.generate("observed", obs_h, flavour="array",
-                                         extra_args=("P",), comments=obs_names)
-    observed_fn = codegen.compile_function("observed", obs_src, obs_tabs)
+    observed_fn = None   # generated when first needed (results are often read by name only)
 
     system = System(
         name, names, differential,
@@ -822,7 +834,7 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
         [infos[nm].unit for nm in names], [infos[nm].description for nm in names], labels,
         [en.row for en in entries], [en.col for en in entries], residual_fn, jac_fn,
         observed_fn, {nm: (observed[nm][1], observed[nm][2]) for nm in obs_names}, event_fn,
-        events, mode_names, mode_start, subs, [der_src, res_src, jac_src, ev_src, obs_src])
+        events, mode_names, mode_start, subs, [der_src, res_src, jac_src, ev_src])
     system._alias_units = {nm: infos[nm].unit for nm in subs}
     system._obs_exprs = dict(zip(obs_names, obs_exprs))
     system.parameters = parameters
@@ -834,6 +846,7 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     system._nbase = base
     system._update_derived()
     system._lazy["residual_exprs"] = res_exprs   # for dF/dp, differentiated when first asked
+    system._lazy["observed_exprs"] = (obs_h, obs_names)
     system._models = {}
     system.reset_modes()
     return system
