@@ -102,9 +102,12 @@ def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True):
     if eliminate_aliases:
         equations = _eliminate_aliases(equations, infos, subs)
 
+    from .index_reduction import given_starts, reduce_index
+    equations, events, observed, reduction = reduce_index(equations, infos, subs, events,
+                                                          observed, given_starts(leaves))
     from .system import build_system
-    return build_system(circuit.name, equations, infos, subs, observed, events, mode_names,
-                        mode_start)
+    return reduction.attach(build_system(circuit.name, equations, infos, subs, observed, events,
+                                         mode_names, mode_start))
 
 
 # 1. flatten ---------------------------------------------------------------------------------

@@ -252,28 +252,6 @@ def test_structurally_singular_block_is_named():
     assert "x equation" in str(info.value) or "node" in str(info.value)
 
 
-def test_index_above_one_is_refused():
-    class Mass(Component):
-        ports = {"flange": Mechanical()}
-        variables = {"v": Variable("m/s")}
-
-        def equations(self, v, p):
-            return [der(v.flange.x) - v.v, 2.0 * der(v.v) - v.flange.f]
-
-    class PositionSource(Component):
-        ports = {"flange": Mechanical()}
-
-        def equations(self, v, p):
-            return [v.flange.x - 0.01 * v.t]
-
-    c = Circuit("c")
-    m = c.add("mass", Mass())
-    s = c.add("drive", PositionSource())
-    c.connect(m.flange, s.flange)
-    with pytest.raises(StructureError, match=r"index above one.*(mass|drive)"):
-        c.compile()
-
-
 def test_errors_share_one_base_class():
     for cls in (CircuitError, ConnectionError_, ParameterError, StructureError):
         assert issubclass(cls, PvgraphError)
