@@ -22,19 +22,25 @@ Algorithm
    modes, parameters) are constant in time.
 3. *Dummy derivatives* (Mattsson-Soderlind) [2]_. Starting from the most differentiated
    equations, the Jacobian of each level's differentiated equations with respect to the highest
-   derivatives in them is evaluated at the start values and as many columns as equations are
-   chosen by QR with column pivoting (rows and columns scaled; derivatives of variables with a
-   user-given start value are chosen last, so those variables stay states). The chosen
-   derivatives become *dummy derivatives*: plain algebraic unknowns. The next level down uses the
-   equations one differentiation lower and the anti-derivatives of the dummies chosen.
+   derivatives in them is evaluated at the start values, split into its connected blocks, and in
+   each block as many columns as equations are chosen by QR with column pivoting. Rows are scaled
+   to unit maximum, columns by the variable's nominal magnitude, by ``ORDER_PREFERENCE`` per
+   derivative order above one (a second derivative of a position is made a dummy before a mass's
+   own velocity loses its state) and by ``START_PREFERENCE`` (variables with a start value the
+   user gave keep their state). The chosen derivatives become *dummy derivatives*: plain
+   algebraic unknowns. The next level down uses the equations one differentiation lower and the
+   anti-derivatives of the dummies chosen. A block singular at the start values is refused with
+   the equations' names (redundant constraints); one whose entries cannot be evaluated there is
+   chosen structurally (a matching in the same preference order).
 4. *First-order form.* For each variable ``x`` with derivatives ``x, x', ..., x^(k)`` of which
    ``x^(d), ..., x^(k)`` are dummies: ``x, ..., x^(d-2)`` are states, ``x^(d-1)`` is the
    derivative of the last one (``der`` in the residual), an intermediate ``x^(j)`` gets the
    equation ``der(x^(j-1)) = x^(j)``. New unknowns are named ``der(x)`` and ``der(x, j)``.
 
-Where a chosen pivot block is not constant, a terminal event watches its determinant: if it falls
-below ``PIVOT_RATIO`` of its start value the set of states would have to change, and the run stops
-with a :class:`~pvgraph.errors.SolverError` naming the dummy derivatives, the states and the time.
+Where a chosen pivot block (of at most ``MONITOR_MAX_BLOCK`` rows) is not constant, an event
+watches its determinant: if it falls below ``PIVOT_RATIO`` of its start value the set of states
+would have to change, and the run stops with a :class:`~pvgraph.errors.SolverError` naming the
+dummy derivatives, the states and the time (states are not switched during a run).
 
 The start values a user gives must satisfy the constraints that were hidden in the original
 equations; after reduction they are checked by solving for consistent values at ``t = 0`` with the
@@ -66,21 +72,23 @@ from .errors import InitializationError, SolverError, StructureError
 __all__ = ["time_derivative", "reduce_index", "IndexReduction", "derivative_name", "given_starts"]
 
 MAX_DIFFERENTIATIONS = 8     # an equation differentiated more often means a modelling error
-PIVOT_RATIO = 0.1            # a pivot block's |det| below this fraction of its start value ends a run
+PIVOT_RATIO = 0.1            # a pivot block's |det| below this fraction of its start value
+                             # ends a run
 PIVOT_RANK_TOL = 1e-9        # relative size of the last pivot of a numerically full-rank block
 MONITOR_MAX_BLOCK = 3        # larger non-constant pivot blocks are not watched (cost of det)
 START_PREFERENCE = {0: 1.0, 1: 0.7, 2: 0.4}   # column weights: given starts stay states
-ORDER_PREFERENCE = 100.0     # column weight per derivative order above one: dummy those first,
+ORDER_PREFERENCE = 1e4       # column weight per derivative order above one: dummy those first,
                              # rather than make a velocity a second state beside the mass's own
 START_RTOL = 1e-6            # relative mismatch between a given start and a consistent value
-IC_MAX_ITERS = 30
+IC_MAX_ITERS = 30            # Newton iterations of the start-value check
+IC_TOL = 1e-10               # relative Newton step accepted as converged there
 EVENT_OWNER = "index_reduction"
 NAMES_IN_MESSAGES = 12       # conflicting start values listed in one message
 EQUATION_TEXT = 90           # characters of an equation's text shown in the report
 
 
 def derivative_name(name: str, order: int) -> str:
-    """The unknown holding the ``order``-th time derivative of ``name``: ``der(x)``, ``der(x, 2)``."""
+    """Name of the unknown holding the ``order``-th time derivative: ``der(x)``, ``der(x, 2)``."""
     if order == 0:
         return name
     return f"der({name})" if order == 1 else f"der({name}, {order})"
@@ -180,30 +188,19 @@ class IndexReduction:
             return system
         self._check_start(system)
         if any(b.det is not None for b in self.blocks):
-            plain = system.solver_events
-
-            def solver_events():
-                events = plain()
-                for ev in events:
-                    if ev.name.startswith(EVENT_OWNER + "."):
-                        ev.action = self._pivot_lost(ev.name)
-                return events
-            system.solver_events = solver_events
+            system.solver_events = _WatchedEvents(system.solver_events, self)
         return system
 
-    def _pivot_lost(self, event_name):
-        k = int(event_name.rsplit("_", 1)[1])
+    def pivot_lost(self, k: int, t: float):
+        """The error that ends a run where watched pivot block ``k`` became ill-conditioned."""
         block = [b for b in self.blocks if b.det is not None][k]
-
-        def act(t, y, yp):
-            raise SolverError(
-                f"at t = {t:.6g} s the dummy derivatives {', '.join(block.dummies)} can no longer "
-                f"be solved from {'; '.join(block.equations)} (the pivot determinant fell below "
-                f"{PIVOT_RATIO:g} of its start value): the choice of states "
-                f"({', '.join(n for n, _ in self.states)}) would have to change. Start from a "
-                f"configuration near the one at this time, or add compliance (a spring, a volume) "
-                f"to remove the rigid constraint.", t=float(t), culprits=list(block.dummies))
-        return act
+        return SolverError(
+            f"at t = {t:.6g} s the dummy derivatives {', '.join(block.dummies)} can no longer "
+            f"be solved from {'; '.join(block.equations)} (the pivot determinant fell below "
+            f"{PIVOT_RATIO:g} of its start value): the choice of states "
+            f"({', '.join(n for n, _ in self.states)}) would have to change. Start from a "
+            f"configuration near the one at this time, or add compliance (a spring, a volume) "
+            f"to remove the rigid constraint.", t=float(t), culprits=list(block.dummies))
 
     def _check_start(self, system):
         """Raise if given start values contradict the constraints of the reduced system."""
@@ -238,6 +235,30 @@ class IndexReduction:
                 f"(rigid joints, position sources): {listed}. With the states {states} held, the "
                 f"differentiated equations ({'; '.join(d[0] for d in self.differentiated[:4])}) "
                 f"fix these values. Give start values only to the states, or consistent ones.")
+
+
+class _WatchedEvents:
+    """``System.solver_events`` with an action that stops the run on a lost pivot."""
+
+    def __init__(self, plain, reduction):
+        self.plain = plain
+        self.reduction = reduction
+
+    def __call__(self):
+        events = self.plain()
+        for ev in events:
+            if ev.name.startswith(EVENT_OWNER + "."):
+                ev.action = _PivotLost(self.reduction, int(ev.name.rsplit("_", 1)[1]))
+        return events
+
+
+class _PivotLost:
+    def __init__(self, reduction, k):
+        self.reduction = reduction
+        self.k = k
+
+    def __call__(self, t, y, yp):
+        raise self.reduction.pivot_lost(self.k, t)
 
 
 def _times(k):
@@ -507,7 +528,10 @@ class _Reducer:
     def _label(self, k):
         src, times = self.eq_src[k]
         label = self.orig[src].label
-        return label if times == 0 else f"d{'' if times == 1 else times}/dt{'' if times == 1 else times} of {label}"
+        if times == 0:
+            return label
+        k = "" if times == 1 else str(times)
+        return f"d{k}/dt{k} of {label}"
 
     # assembly ---------------------------------------------------------------------------------
     def run(self):
@@ -727,7 +751,11 @@ def _evaluate(e: E.Expr, values: dict) -> float:
 
 
 def _consistent_values(system, t0=0.0):
-    """Consistent y at ``t0`` with the differential states held at their start values."""
+    """Consistent y at ``t0`` with the differential states held at their start values.
+
+    Newton on the algebraic y and the derivatives of the states (the unknowns of IDA's
+    ``calc_initial="algebraic"``); returns ``(y, converged)``.
+    """
     y = system.y0.copy()
     yp = system.yp0.copy()
     alg = system.algebraic
@@ -735,19 +763,17 @@ def _consistent_values(system, t0=0.0):
         r = system.residual(t0, y, yp)
         if not np.all(np.isfinite(r)):
             return y, False
-        scale = np.maximum(np.abs(y), system.nominal)
-        if np.all(np.abs(r) <= 1e-12 * (1.0 + np.abs(r).max())) and _ > 0:
-            return y, True
         J0 = system.jacobian_dense(t0, y, yp, 0.0)
         J1 = system.jacobian_dense(t0, y, yp, 1.0)
-        M = np.where(alg[None, :], J0, J1 - J0)
+        M = np.where(alg[None, :], J0, J1 - J0)   # column j: dF/dy_j or dF/dy'_j
         try:
             dz = np.linalg.solve(M, r)
         except np.linalg.LinAlgError:
             return y, False
+        z = np.where(alg, y, yp)
         y[alg] -= dz[alg]
         yp[~alg] -= dz[~alg]
-        if np.all(np.abs(dz[alg]) <= 1e-12 * scale[alg]):
+        if np.all(np.abs(dz) <= IC_TOL * np.maximum(np.abs(z), system.nominal)):
             return y, True
     return y, False
 

@@ -171,3 +171,38 @@ def test_pvg32_spool_and_lever_joined_match_the_merged_spool_mass():
     assert moving.sum() > 20
     share = f_lever[moving] / (f_lever[moving] + f_spool[moving])
     assert np.allclose(share, m.lever_equivalent_mass / m.total_mass, rtol=1e-6)
+
+
+def _spool_and_lever(m, m_lever=0.0, **kwargs):
+    """The main spool as two bodies on one flange: spool (eq. 4.67) and lever (eq. 4.82)."""
+    if m_lever == 0.0:
+        return SpoolMass(m=m, **kwargs)
+    c = Circuit("main_spool")
+    spool = c.add("spool", SpoolMass(m=m, **kwargs))
+    lever = c.add("lever", SpoolMass(m=m_lever))
+    c.connect(spool.flange, lever.flange)
+    c.expose("flange", spool.flange)
+    return c
+
+
+def test_pvg32_rig_with_spool_and_lever_joined_matches_the_merged_model(monkeypatch):
+    """Report 4.9 / figure 4.62: the closed-loop step to 3.5 mm of the full rig, once with the
+    merged ``SpoolMass(m, m_lever)`` of ``build_pvb`` and once with the lever as its own body."""
+    import circuits.pvg32.modules as modules
+    from circuits.rig import build_rig
+    from pvgraph.units import mm
+
+    p = report_tuned()
+    u = 11.5 * (-mm(3.5) + 0.014) / 0.028      # the input voltage that commands -3.5 mm
+    t = np.linspace(0.0, 0.5, 51)
+    merged = simulate(build_rig(p, U_input=u), 0.5, rtol=1e-6, t_eval=t)
+    monkeypatch.setattr(modules, "SpoolMass", _spool_and_lever)
+    s = build_rig(p, U_input=u).compile()
+    assert "pvg.pvb.main_spool.lever equation 1 (SpoolMass): once" in s.index_report()
+    joined = simulate(s, 0.5, rtol=1e-6, t_eval=t)
+    x_m = merged["pvg.pvb.main_spool.flange.x"]
+    x_j = joined["pvg.pvb.main_spool.spool.flange.x"]
+    assert x_m[-1] == pytest.approx(-mm(3.5), rel=0.05)
+    assert np.max(np.abs(x_j - x_m)) < 1e-4 * mm(3.5)
+    for name in ("pvg.pve.V4.port.p", "pvg.pve.V5.port.p"):
+        assert np.allclose(joined[name], merged[name], rtol=0, atol=1e-4 * np.ptp(merged[name]))

@@ -11,7 +11,7 @@ from scipy.special import ellipk
 
 from components.hydraulic import FlowSource, Tank, VolumeNode
 from components.mechanical import ForceInput, PositionInput, SpoolMass
-from components.signal import Constant, Sine
+from components.signal import Constant, Sine, TimeTable
 from pvgraph import (Circuit, Component, Hydraulic, InitializationError, Mechanical, Params,
                      SolverError, StructureError, Variable, der)
 from pvgraph import expr as E
@@ -85,6 +85,28 @@ def test_masses_on_one_flange_move_as_one_mass():
         assert np.allclose(sol[f"m{k}.flange.f"], masses[k - 1] * a, rtol=1e-9)
 
 
+def test_report_names_dummies_and_states_by_component():
+    s = masses_under_force([1.0, 2.0], 3.0).compile()
+    report = s.index_report()
+    dummies = report.split("dummy derivatives (")[1].split("states chosen")[0]
+    states = report.split("states chosen")[1].split("made algebraic")[0]
+    # the position's second derivative and one velocity's derivative are dummies; the position
+    # and the other velocity stay states; each line names the component it belongs to
+    assert "der(m1.flange.x, 2)  [m1]" in dummies
+    assert "m1.flange.x  [m1]" in states
+    assert ("m1.v  [m1]" in states) != ("m2.v  [m2]" in states)
+    assert s.names.count("der(m1.flange.x, 2)") == 1
+
+
+def test_connection_equations_kept_are_differentiated_too():
+    """Without alias elimination the node's position equality is the constraint (index three)."""
+    s = masses_under_force([1.0, 2.0], 3.0).compile(eliminate_aliases=False)
+    assert "x equal at m2.flange: twice" in s.index_report()
+    sol = simulate(s, 1.0, t_eval=np.array([0.0, 1.0]), rtol=1e-8)
+    assert sol["m1.flange.x"][-1] == pytest.approx(0.5, rel=1e-8)
+    assert sol["m2.v"][-1] == pytest.approx(1.0, rel=1e-8)
+
+
 def test_given_start_velocity_keeps_that_mass_a_state():
     c = masses_under_force([1.0, 3.0], 8.0, start={1: {"v0": 0.5}})
     s = c.compile()
@@ -130,6 +152,17 @@ def test_position_input_force_is_mass_times_acceleration():
                        atol=1e-6 * m * A * w * w)
     assert np.allclose(sol["mass.v"], A * w * np.cos(w * t), rtol=0, atol=1e-9)
     assert np.allclose(sol["mass.a"], -A * w * w * np.sin(w * t), rtol=0, atol=1e-6 * A * w * w)
+
+
+def test_a_pchip_position_table_that_would_need_a_second_derivative_is_named():
+    c = Circuit("drive")
+    mass = c.add("mass", SpoolMass(m=2.0))
+    pos = c.add("pos", PositionInput())
+    table = c.add("table", TimeTable(t=(0.0, 1.0, 2.0), y=(0.0, 1e-3, 0.0), method="pchip"))
+    c.connect(mass.flange, pos.flange)
+    c.connect(table.y, pos.u)
+    with pytest.raises(StructureError, match=r"slope of table .*pchip.*method='linear'"):
+        c.compile()
 
 
 def test_structurally_singular_circuit_is_still_refused_by_name():
