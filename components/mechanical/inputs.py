@@ -38,7 +38,7 @@ class ForceInput(Component):
 
 
 class PositionInput(Component):
-    """Position source driven by a signal: ``flange.x = u`` [m]."""
+    """Position source driven by a signal: ``flange.x = u`` [m]; it may drive a mass directly."""
 
     ports = {"flange": Mechanical("the driven node"),
              "u": SignalIn("position set point", "m", 1e-3)}

@@ -107,6 +107,21 @@ def test_connection_equations_kept_are_differentiated_too():
     assert sol["m2.v"][-1] == pytest.approx(1.0, rel=1e-8)
 
 
+def test_joined_masses_on_a_spring_linearise_to_one_mass_of_the_sum():
+    from components.mechanical import LinearSpring
+    from pvgraph.analysis import linearize, steady_state
+    k, F = 4e3, 20.0
+    c = masses_under_force([1.0, 3.0], F)
+    spring = c.add("spring", LinearSpring(k=k))
+    c.connect(spring.flange, c["m1"].flange)
+    s = c.compile()
+    op = steady_state(s)
+    assert op["m2.flange.x"] == pytest.approx(F / k, rel=1e-9)
+    lin = linearize(s, op, None, ["m2.flange.x"])
+    assert lin.A.shape == (2, 2)
+    assert sorted(np.abs(lin.poles().imag)) == pytest.approx([math.sqrt(k / 4.0)] * 2, rel=1e-9)
+
+
 def test_given_start_velocity_keeps_that_mass_a_state():
     c = masses_under_force([1.0, 3.0], 8.0, start={1: {"v0": 0.5}})
     s = c.compile()
