@@ -180,6 +180,22 @@ def test_a_pchip_position_table_that_would_need_a_second_derivative_is_named():
         c.compile()
 
 
+def test_start_values_a_position_source_overrides_are_named():
+    A, f = 0.01, 5.0
+    c = Circuit("drive")
+    mass = c.add("mass", SpoolMass(m=2.0, x0=0.004, v0=A * 2.0 * math.pi * f))
+    pos = c.add("pos", PositionInput())
+    sine = c.add("sine", Sine(amplitude=A, f=f))
+    c.connect(mass.flange, pos.flange)
+    c.connect(sine.y, pos.u)
+    with pytest.raises(InitializationError) as info:
+        c.compile()
+    msg = str(info.value)
+    # x(0) = A sin(0) = 0 contradicts x0; v0 = A w is what the sine gives, so it is not named
+    assert "mass.flange.x = 0.004 given, the constraints force 0" in msg
+    assert "mass.v" not in msg.split("With the states")[0]
+
+
 def test_structurally_singular_circuit_is_still_refused_by_name():
     class TwoLawsForOnePressureDrop(Component):
         ports = {"a": Hydraulic(), "b": Hydraulic()}
