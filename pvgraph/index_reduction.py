@@ -573,7 +573,7 @@ class _Reducer:
                 if order == d - 1:
                     continue
                 name = derivative_name(base, order)
-                unit = f"{info.unit}/s" if order == 1 else f"{info.unit}/s^{order}"
+                unit = _per_time(info.unit, order)
                 self.infos[name] = replace(
                     info, name=name, unit=unit, start=0.0, start_priority=0,
                     description=f"{_ordinal(order)} time derivative of {base}"
@@ -638,6 +638,20 @@ class _Reducer:
                     result.unwatched.extend(b.dummies)
             result.blocks.append(b)
         return out, new_events, new_observed, result
+
+
+def _per_time(unit, order):
+    """``unit`` divided by ``s^order``: ``m`` -> ``m/s^2``, ``m/s`` -> ``m/s^2``."""
+    if not unit:
+        return f"1/s^{order}" if order > 1 else "1/s"
+    base, k = unit, 0
+    if unit.endswith("/s"):
+        base, k = unit[:-2], 1
+    elif "/s^" in unit and unit.rsplit("/s^", 1)[1].isdigit():
+        base, tail = unit.rsplit("/s^", 1)
+        k = int(tail)
+    k += order
+    return f"{base}/s" if k == 1 else f"{base}/s^{k}"
 
 
 def _short(text, width=EQUATION_TEXT):
