@@ -206,13 +206,9 @@ class IndexReduction:
         """Raise if given start values contradict the constraints of the reduced system."""
         checks = []
         for name, value in self.given.items():
-            base = name
-            if name in system.aliases:
-                target = system.aliases[name][1]
-                base = target
-            if base not in self.involved:
-                continue
-            checks.append((name, value))
+            base = system.aliases[name][1] if name in system.aliases else name
+            if base in self.involved and base in system.index:
+                checks.append((name, value))
         if not checks:
             return
         y, ok = _consistent_values(system)

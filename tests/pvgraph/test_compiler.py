@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from components import FlowSource, LaminarOrifice, Orifice, Plug, Tank, VolumeNode
-from pvgraph import Circuit, Component, Hydraulic, Mechanical, SignalIn, SignalOut, Variable, der
+from pvgraph import Circuit, Component, Hydraulic, Mechanical, SignalIn, SignalOut, Variable
 from pvgraph.errors import (CircuitError, ConnectionError_, ParameterError, PvgraphError,
                             StructureError)
 from pvgraph.units import bar, litre, lpm, lpm_per_bar, mm2

@@ -12,7 +12,7 @@ from scipy.special import ellipk
 from components.hydraulic import FlowSource, Tank, VolumeNode
 from components.mechanical import ForceInput, PositionInput, SpoolMass
 from components.signal import Constant, Sine, TimeTable
-from pvgraph import (Circuit, Component, Hydraulic, InitializationError, Mechanical, Params,
+from pvgraph import (Circuit, Component, Hydraulic, InitializationError, Params,
                      SolverError, StructureError, Variable, der)
 from pvgraph import expr as E
 from pvgraph.index_reduction import derivative_name, time_derivative
