@@ -124,13 +124,16 @@ def _compile(circuit, eliminate_aliases):
     if eliminate_aliases:
         equations = _eliminate_aliases(equations, infos, subs, trace.values)
 
+    from .index_reduction import given_starts, reduce_index
+    equations, events, observed, reduction = reduce_index(equations, infos, subs, events,
+                                                          observed, given_starts(leaves))
     from .system import build_system
     system = build_system(circuit.name, equations, infos, subs, observed, events, mode_names,
                           mode_start, parameters=registry, tables=trace.tables)
     system._circuit = circuit
     system._components = dict(leaves)
     system._models = {path: comp.params for path, comp in leaves}
-    return system
+    return reduction.attach(system)
 
 
 # 1. flatten ---------------------------------------------------------------------------------

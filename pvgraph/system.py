@@ -80,6 +80,7 @@ class System:
     """
 
     DENSE_MAX = 120  # above this many unknowns the Jacobian is handed to the solver sparse
+    index_reduction = None  # the compiler's IndexReduction (pvgraph.index_reduction)
 
     def __init__(self, name, names, differential, y0, nominal, units, descriptions, equations,
                  rows, cols, residual_fn, jac_fn, observed_fn, observed, event_fn, event_specs,
@@ -189,7 +190,15 @@ class System:
             out.append(Event(fun=self._event_component(k, g_all), direction=spec.direction,
                              terminal=spec.terminal,
                              action=self._event_action(path, spec), name=f"{path}.{spec.name}"))
+        if self.index_reduction is not None:
+            self.index_reduction.watch(out)
         return out
+
+    def index_report(self) -> str:
+        """What index reduction did: differentiated equations, dummy derivatives, states."""
+        if self.index_reduction is None:
+            return "no index reduction: the system was not compiled from a circuit."
+        return self.index_reduction.report()
 
     def _event_component(self, k, g_all):
         fn = self._event_fn

@@ -34,6 +34,17 @@ def _build_circuit(r, tmp_path):
     assert (tmp_path / "build_circuit.png").exists()
 
 
+@check("shaker_table")
+def _shaker_table(r, tmp_path):
+    # base-excited oscillator: steady amplitude Y * transmissibility
+    assert r["x_payload"] == pytest.approx(r["x_expected"], rel=2e-3)
+    # the position drive supplies the rigidly joined masses' inertia plus the mount force
+    assert r["force_error"] < 1e-6 * r["force_scale"]
+    assert "table equation 1 (SpoolMass): once" in r["report"]
+    assert "fixture equation 1 (SpoolMass): once" in r["report"]
+    assert r["states"] == ["payload.flange.x", "payload.v"]
+
+
 @check("swap_load")
 def _swap_load(r, tmp_path):
     lam, cyl = r["laminar"], r["cylinder"]

@@ -10,8 +10,14 @@
 
     flange.x = u
 
-A position input driving a mass makes the mass's state algebraic (index above one); drive a
-mass through a stiff spring instead, or use a ``ForceInput``.
+A position input may drive a mass directly, as on a test bench: the circuit is then of index
+above one (the mass's position and velocity follow the input), and the compiler reduces it by
+differentiating ``u`` (the signal source's own function of time) twice; ``flange.f`` is then the
+force needed to move the node, ``m * der(u, 2)`` for a free mass. ``system.index_report()``
+lists what was differentiated. Use a set point that is smooth where it drives a mass (a
+``Sine``, any smooth expression of time): at the corners of a ``Ramp``, a ``Step`` or a linear
+``TimeTable`` the required force is an impulse, and a pchip table cannot be differentiated
+twice; there, drive the mass through a stiff spring instead.
 """
 
 from __future__ import annotations
@@ -32,7 +38,7 @@ class ForceInput(Component):
 
 
 class PositionInput(Component):
-    """Position source driven by a signal: ``flange.x = u`` [m]."""
+    """Position source driven by a signal: ``flange.x = u`` [m]; it may drive a mass directly."""
 
     ports = {"flange": Mechanical("the driven node"),
              "u": SignalIn("position set point", "m", 1e-3)}

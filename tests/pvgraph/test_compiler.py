@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from components import FlowSource, LaminarOrifice, Orifice, Plug, Tank, VolumeNode
-from pvgraph import Circuit, Component, Hydraulic, Mechanical, SignalIn, SignalOut, Variable, der
+from pvgraph import Circuit, Component, Hydraulic, Mechanical, SignalIn, SignalOut, Variable
 from pvgraph.errors import (CircuitError, ConnectionError_, ParameterError, PvgraphError,
                             StructureError)
 from pvgraph.units import bar, litre, lpm, lpm_per_bar, mm2
@@ -255,28 +255,6 @@ def test_structurally_singular_block_is_named():
     with pytest.raises(StructureError) as info:
         c.compile()
     assert "x equation" in str(info.value) or "node" in str(info.value)
-
-
-def test_index_above_one_is_refused():
-    class Mass(Component):
-        ports = {"flange": Mechanical()}
-        variables = {"v": Variable("m/s")}
-
-        def equations(self, v, p):
-            return [der(v.flange.x) - v.v, 2.0 * der(v.v) - v.flange.f]
-
-    class PositionSource(Component):
-        ports = {"flange": Mechanical()}
-
-        def equations(self, v, p):
-            return [v.flange.x - 0.01 * v.t]
-
-    c = Circuit("c")
-    m = c.add("mass", Mass())
-    s = c.add("drive", PositionSource())
-    c.connect(m.flange, s.flange)
-    with pytest.raises(StructureError, match=r"index above one.*(mass|drive)"):
-        c.compile()
 
 
 def test_errors_share_one_base_class():

@@ -111,8 +111,11 @@ def test_constant_force_gives_parabola_in_its_direction(sim, F):
     np.testing.assert_allclose(sol["dut.v"], F * sol.t / m, rtol=1e-6)
 
 
-def test_position_bench_on_a_mass_is_refused():
-    """A position source driving a mass is index two; the compiler names it."""
-    from pvgraph import StructureError
-    with pytest.raises(StructureError):
-        bench_circuit(SpoolMass(m=1.0), flange=Position(lambda t: 1e-3 * t)).compile()
+def test_position_bench_on_a_mass_is_reduced_and_takes_m_times_a():
+    """A position source driving a mass is index two; the compiler reduces it."""
+    from pvgraph.simulate import simulate
+    m, a = 2.0, 0.5
+    bench = bench_circuit(SpoolMass(m=m), flange=Position(lambda t: 1e-3 * t + 0.5 * a * t * t))
+    sol = simulate(bench, 1.0)
+    np.testing.assert_allclose(sol["dut.v"], 1e-3 + a * sol.t, rtol=1e-9)
+    np.testing.assert_allclose(sol["dut.flange.f"], m * a, rtol=1e-9)

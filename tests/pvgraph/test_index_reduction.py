@@ -1,0 +1,276 @@
+"""Index reduction (Pantelides, dummy derivatives) on circuits with closed-form answers."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from pydantic import Field
+from scipy.special import ellipk
+
+from components.hydraulic import FlowSource, Tank, VolumeNode
+from components.mechanical import ForceInput, PositionInput, SpoolMass
+from components.signal import Constant, Sine, TimeTable
+from pvgraph import (Circuit, Component, Hydraulic, InitializationError, Params,
+                     SolverError, StructureError, Variable, der)
+from pvgraph import expr as E
+from pvgraph.index_reduction import derivative_name, time_derivative
+from pvgraph.simulate import simulate
+
+G = 9.81
+
+
+# the total time derivative ---------------------------------------------------------------------
+
+def test_time_derivative_follows_product_chain_and_explicit_time():
+    x, y = E.Expr("sym", (), "x"), E.Expr("sym", (), "y")
+    t = E.Expr("time")
+    e = x * y + E.sin(3.0 * t) + E.exp(x) + 2.0 * E.Expr("sym", (), "m.#mode")
+
+    def d(node):
+        if node.op == "sym" and "#" not in node.value:
+            return E.Expr("sym", (), derivative_name(node.value, 1))
+        return None  # the mode is constant in time
+    de = time_derivative(e, d)
+    vals = {"x": 0.7, "y": -1.3, "der(x)": 2.0, "der(y)": 0.5}
+    tv = 0.4
+    leaves = {("sym", k): v for k, v in vals.items()}
+    got = _eval(de, leaves, tv)
+    want = 2.0 * -1.3 + 0.7 * 0.5 + 3.0 * math.cos(3.0 * tv) + math.exp(0.7) * 2.0
+    assert got == pytest.approx(want, rel=1e-14)
+
+
+def _eval(e, leaves, t):
+    src = E.substitute([e], lambda n: E.const(leaves[(n.op, n.value)]) if n.op == "sym" else
+                       (E.const(t) if n.op == "time" else None))[0]
+    assert src.op == "const"
+    return src.value
+
+
+# circuits ---------------------------------------------------------------------------------------
+
+def masses_under_force(masses, force, *, start=None):
+    c = Circuit("masses")
+    parts = [c.add(f"m{k + 1}", SpoolMass(m=m, **(start or {}).get(k, {})))
+             for k, m in enumerate(masses)]
+    push = c.add("push", ForceInput())
+    k = c.add("k", Constant(k=force))
+    c.connect(*[p.flange for p in parts], push.flange)
+    c.connect(k.y, push.u)
+    return c
+
+
+def test_index_one_circuit_compiles_unchanged():
+    c = masses_under_force([2.0], 4.0)
+    s = c.compile()
+    assert s.names == ["m1.flange.x", "m1.v"]
+    assert "no index reduction" in s.index_report()
+
+
+def test_masses_on_one_flange_move_as_one_mass():
+    masses, F = [1.0, 2.0, 3.0], 6.0
+    s = masses_under_force(masses, F).compile()
+    report = s.index_report()
+    for k in (1, 2, 3):
+        assert f"m{k} equation 1 (SpoolMass)" in report
+    assert int(s.differential.sum()) == 2  # one position, one velocity
+    t = np.linspace(0.0, 1.0, 11)
+    sol = simulate(s, 1.0, t_eval=t, rtol=1e-8)
+    a = F / sum(masses)
+    assert np.allclose(sol["m3.flange.x"], 0.5 * a * t ** 2, rtol=0, atol=1e-9)
+    for k in (1, 2, 3):
+        assert np.allclose(sol[f"m{k}.v"], a * t, rtol=0, atol=1e-9)
+        # each mass takes its share of the force: m_k * a
+        assert np.allclose(sol[f"m{k}.flange.f"], masses[k - 1] * a, rtol=1e-9)
+
+
+def test_report_names_dummies_and_states_by_component():
+    s = masses_under_force([1.0, 2.0], 3.0).compile()
+    report = s.index_report()
+    dummies = report.split("dummy derivatives (")[1].split("states chosen")[0]
+    states = report.split("states chosen")[1].split("made algebraic")[0]
+    # the position's second derivative and one velocity's derivative are dummies; the position
+    # and the other velocity stay states; each line names the component it belongs to
+    assert "der(m1.flange.x, 2)  [m1]" in dummies
+    assert "m1.flange.x  [m1]" in states
+    assert ("m1.v  [m1]" in states) != ("m2.v  [m2]" in states)
+    assert s.names.count("der(m1.flange.x, 2)") == 1
+    assert s.unit("der(m1.flange.x, 2)") == "m/s^2"
+    dummy_v = [n for n in ("der(m1.v)", "der(m2.v)") if n in s.names]
+    assert len(dummy_v) == 1 and s.unit(dummy_v[0]) == "m/s^2"
+
+
+def test_connection_equations_kept_are_differentiated_too():
+    """Without alias elimination the node's position equality is the constraint (index three)."""
+    s = masses_under_force([1.0, 2.0], 3.0).compile(eliminate_aliases=False)
+    assert "x equal at m2.flange: twice" in s.index_report()
+    sol = simulate(s, 1.0, t_eval=np.array([0.0, 1.0]), rtol=1e-8)
+    assert sol["m1.flange.x"][-1] == pytest.approx(0.5, rel=1e-8)
+    assert sol["m2.v"][-1] == pytest.approx(1.0, rel=1e-8)
+
+
+def test_joined_masses_on_a_spring_linearise_to_one_mass_of_the_sum():
+    from components.mechanical import LinearSpring
+    from pvgraph.analysis import linearize, steady_state
+    k, F = 4e3, 20.0
+    c = masses_under_force([1.0, 3.0], F)
+    spring = c.add("spring", LinearSpring(k=k))
+    c.connect(spring.flange, c["m1"].flange)
+    s = c.compile()
+    op = steady_state(s)
+    assert op["m2.flange.x"] == pytest.approx(F / k, rel=1e-9)
+    lin = linearize(s, op, None, ["m2.flange.x"])
+    assert lin.A.shape == (2, 2)
+    assert sorted(np.abs(lin.poles().imag)) == pytest.approx([math.sqrt(k / 4.0)] * 2, rel=1e-9)
+
+
+def test_given_start_velocity_keeps_that_mass_a_state():
+    c = masses_under_force([1.0, 3.0], 8.0, start={1: {"v0": 0.5}})
+    s = c.compile()
+    assert s.differential[s.index["m2.v"]]
+    sol = simulate(s, 1.0, t_eval=np.array([0.0, 1.0]), rtol=1e-8)
+    assert sol["m1.v"][-1] == pytest.approx(0.5 + 2.0 * 1.0, rel=1e-9)
+    assert sol["m1.flange.x"][-1] == pytest.approx(0.5 + 0.5 * 2.0, rel=1e-8)
+
+
+def test_conflicting_start_positions_are_named():
+    c = masses_under_force([1.0, 1.0], 1.0, start={0: {"x0": 0.01}, 1: {"x0": 0.02}})
+    with pytest.raises(InitializationError) as info:
+        c.compile()
+    msg = str(info.value)
+    assert ("m1.flange.x = 0.01 given, the constraints force 0.02" in msg
+            or "m2.flange.x = 0.02 given, the constraints force 0.01" in msg)
+
+
+def test_conflicting_start_velocities_are_named():
+    c = masses_under_force([1.0, 1.0], 1.0, start={0: {"v0": 1.0}, 1: {"v0": 2.0}})
+    with pytest.raises(InitializationError, match=r"m\d\.v = [12] given, the constraints force"):
+        c.compile()
+
+
+def test_position_input_force_is_mass_times_acceleration():
+    m, A, f = 2.0, 0.01, 5.0
+    c = Circuit("drive")
+    mass = c.add("mass", SpoolMass(m=m))
+    pos = c.add("pos", PositionInput())
+    sine = c.add("sine", Sine(amplitude=A, f=f))
+    c.connect(mass.flange, pos.flange)
+    c.connect(sine.y, pos.u)
+    s = c.compile()
+    report = s.index_report()
+    assert "sine equation 1 (Sine): twice" in report
+    assert "der(mass.flange.x, 2)" in report
+    sol = simulate(s, 0.4, max_step=1e-2)   # purely algebraic: exact at every step
+    t = sol.t
+    assert len(t) > 40
+    w = 2.0 * math.pi * f
+    # the source pushes the mass with -pos.flange.f = m x''  (x = A sin(w t))
+    assert np.allclose(-sol["pos.flange.f"], -m * A * w * w * np.sin(w * t), rtol=0,
+                       atol=1e-6 * m * A * w * w)
+    assert np.allclose(sol["mass.v"], A * w * np.cos(w * t), rtol=0, atol=1e-9)
+    assert np.allclose(sol["mass.a"], -A * w * w * np.sin(w * t), rtol=0, atol=1e-6 * A * w * w)
+
+
+def test_a_pchip_position_table_that_would_need_a_second_derivative_is_named():
+    c = Circuit("drive")
+    mass = c.add("mass", SpoolMass(m=2.0))
+    pos = c.add("pos", PositionInput())
+    table = c.add("table", TimeTable(t=(0.0, 1.0, 2.0), y=(0.0, 1e-3, 0.0), method="pchip"))
+    c.connect(mass.flange, pos.flange)
+    c.connect(table.y, pos.u)
+    with pytest.raises(StructureError, match=r"slope of table .*pchip.*method='linear'"):
+        c.compile()
+
+
+def test_start_values_a_position_source_overrides_are_named():
+    A, f = 0.01, 5.0
+    c = Circuit("drive")
+    mass = c.add("mass", SpoolMass(m=2.0, x0=0.004, v0=A * 2.0 * math.pi * f))
+    pos = c.add("pos", PositionInput())
+    sine = c.add("sine", Sine(amplitude=A, f=f))
+    c.connect(mass.flange, pos.flange)
+    c.connect(sine.y, pos.u)
+    with pytest.raises(InitializationError) as info:
+        c.compile()
+    msg = str(info.value)
+    # x(0) = A sin(0) = 0 contradicts x0; v0 = A w is what the sine gives, so it is not named
+    assert "mass.flange.x = 0.004 given, the constraints force 0" in msg
+    assert "mass.v" not in msg.split("With the states")[0]
+
+
+def test_structurally_singular_circuit_is_still_refused_by_name():
+    class TwoLawsForOnePressureDrop(Component):
+        ports = {"a": Hydraulic(), "b": Hydraulic()}
+
+        def equations(self, v, p):  # both fix the pressure drop, none the flow
+            return [E.exp((v.a.p - v.b.p) / 1e5) - 2.0, E.sqrt(1.0 + (v.a.p - v.b.p) ** 2) - 3.0]
+
+    c = masses_under_force([1.0, 2.0], 1.0)   # needs reduction ...
+    src = c.add("src", FlowSource(Q=1e-5))
+    bad = c.add("bad", TwoLawsForOnePressureDrop())  # ... and is singular here
+    node = c.add("node", VolumeNode(V=1e-4))
+    tank = c.add("tank", Tank())
+    c.connect(src.port, node.port, bad.a)
+    c.connect(bad.b, tank.port)
+    with pytest.raises(StructureError) as info:
+        c.compile()
+    msg = str(info.value)
+    assert "structurally singular" in msg
+    assert "Over-determined" in msg and "bad equation" in msg
+
+
+# an index-3 system: the pendulum on a rigid link --------------------------------------------
+
+class PendulumParams(Params):
+    m: float = Field(1.0, gt=0.0, description="Mass [kg]")
+    L: float = Field(1.0, gt=0.0, description="Link length [m]")
+    theta0: float = Field(0.5, ge=-3.2, le=3.2, description="Start angle from below [rad]")
+
+
+class Pendulum(Component):
+    """Point mass on a rigid link in the vertical plane (Cartesian, index 3)."""
+
+    Params = PendulumParams
+    variables = {"x": Variable("m", lambda p: p.L * math.sin(p.theta0)),
+                 "y": Variable("m", lambda p: -p.L * math.cos(p.theta0)),
+                 "vx": Variable("m/s"), "vy": Variable("m/s"),
+                 "lam": Variable("N/m", 0.0, 10.0, "link tension per length")}
+
+    def equations(self, v, p):
+        return [der(v.x) - v.vx, der(v.y) - v.vy,
+                p.m * der(v.vx) + v.lam * v.x,
+                p.m * der(v.vy) + v.lam * v.y + p.m * G,
+                v.x * v.x + v.y * v.y - p.L ** 2]
+
+
+@pytest.mark.parametrize("solver", ["pvgraph", "ida"])
+def test_pendulum_period_matches_the_elliptic_integral_on_both_backends(solver):
+    theta0, L = 0.5, 1.0
+    c = Circuit("pendulum")
+    c.add("p", Pendulum(theta0=theta0, L=L))
+    s = c.compile()
+    assert "p equation 5 (Pendulum): twice" in s.index_report()
+    # well-conditioned pivot at the start: |y| > |x|, so y's derivatives are the dummies and the
+    # horizontal coordinate and its velocity are the states
+    assert [n for n, d in zip(s.names, s.differential) if d] == ["p.x", "p.vx"]
+    T = 4.0 * math.sqrt(L / G) * ellipk(math.sin(theta0 / 2.0) ** 2)
+    sol = simulate(s, T, solver=solver, rtol=1e-8, t_eval=np.array([0.0, T / 2.0, T]))
+    x0 = L * math.sin(theta0)
+    assert sol["p.x"] == pytest.approx([x0, -x0, x0], abs=1e-6)
+    assert np.allclose(sol["p.x"] ** 2 + sol["p.y"] ** 2, L * L, rtol=1e-9)
+    # energy: speed at the turning points is zero, tension there is m g cos(theta0) / L
+    assert np.allclose(sol["p.lam"], G * math.cos(theta0) / L, rtol=1e-5)
+
+
+def test_pendulum_stops_by_name_where_the_state_choice_would_have_to_change():
+    c = Circuit("pendulum")
+    c.add("p", Pendulum(theta0=1.8))  # above horizontal: x is the large coordinate at the start
+    s = c.compile()
+    assert "watched during the run" in s.index_report()
+    T = 4.0 * math.sqrt(1.0 / G) * ellipk(math.sin(0.9) ** 2)
+    with pytest.raises(SolverError, match=r"at t = 0\.\d+ s the dummy derivatives .*der\(p\.x, 2\)"
+                                          r".*choice of states \(p\.vy, p\.y\)") as info:
+        simulate(s, T)
+    # x passes through a tenth of its start value shortly before the bottom (T/4)
+    assert 0.1 * T < info.value.t < 0.25 * T
