@@ -70,7 +70,9 @@ UROUND = np.finfo(float).eps
 NO_GROWTH_AFTER_FAILURE = True  # no step increase right after a failed attempt (CVODE)
 N_CULPRITS = 3              # variable names quoted in failure messages
 
-OK, NEWTON_FAIL, RESIDUAL_FAIL, SETUP_FAIL, ERROR_FAIL = range(5)
+SOLVER_NAME = "pvgraph BDF"   # named in every failure message (not SUNDIALS IDA)
+
+OK, NEWTON_FAIL, RESIDUAL_FAIL, SETUP_FAIL, ERROR_FAIL, JACOBIAN_FAIL = range(6)
 HARMONIC = [sum(1.0 / j for j in range(1, k + 1)) for k in range(MAX_ORDER + 2)]
 
 
@@ -136,6 +138,22 @@ def dominant_names(weighted, var_names, count=N_CULPRITS):
     for i in order:
         names.append(var_names[i] if var_names is not None else f"y[{i}]")
     return names
+
+
+def _nonfinite_entries(m):
+    """(rows, columns) of the non-finite entries of a dense or sparse matrix, or None."""
+    if hasattr(m, "tocoo"):
+        if np.isfinite(m.data).all():
+            return None
+        c = m.tocoo()
+        bad = ~np.isfinite(c.data)
+        return sorted(set(c.row[bad].tolist())), sorted(set(c.col[bad].tolist()))
+    if np.isfinite(np.add.reduce(m, axis=None)):
+        return None
+    rows, cols = np.nonzero(~np.isfinite(m))
+    if rows.size == 0:
+        return None
+    return sorted(set(rows.tolist())), sorted(set(cols.tolist()))
 
 
 class IDAIntegrator:
@@ -365,7 +383,7 @@ class IDAIntegrator:
                 jcur = True
                 cjratio = 1.0
                 if info != 0:
-                    return SETUP_FAIL
+                    return JACOBIAN_FAIL if self._fail[0] == JACOBIAN_FAIL else SETUP_FAIL
             m = 0
             oldnrm = 0.0
             scale = 2.0 / (1.0 + cjratio) if cjratio != 1.0 else 0.0
@@ -420,6 +438,13 @@ class IDAIntegrator:
         self.ss = SS_FIRST_STEP
         self.force_setup = False
         m = self.jacobian.iteration_matrix(tn, yy, yp, r, cj, self.ewt, hh)
+        bad = _nonfinite_entries(m)
+        if bad is not None:
+            # a NaN or inf in dF/dy: recoverable like a failed residual (a smaller step
+            # may stay inside the model's domain), reported as such if it persists
+            self.force_setup = True
+            self._fail = (JACOBIAN_FAIL, bad)
+            return -1
         info = self.lu.factor(m)
         if info != 0:
             self.force_setup = True
@@ -503,7 +528,7 @@ class IDAIntegrator:
     # ------------------------------------------------------------------ errors
     def _raise(self, what, t, h, weighted=None, lead="culprits:"):
         culprits = []
-        text = f"IDA failed at t = {t:.9g} trying step h = {h:.3g}: {what}"
+        text = f"{SOLVER_NAME} failed at t = {t:.9g} trying step h = {h:.3g}: {what}"
         if weighted is not None:
             culprits = dominant_names(weighted, self.var_names)
             text += f"; {lead} {', '.join(repr(c) for c in culprits)}"
@@ -517,7 +542,7 @@ class IDAIntegrator:
 
     def _raise_newton(self, status, ncf, t, h, what=None):
         kind, data = self._fail if self._fail is not None else (status, None)
-        head = f"IDA failed at t = {t:.9g} trying step h = {h:.3g}: "
+        head = f"{SOLVER_NAME} failed at t = {t:.9g} trying step h = {h:.3g}: "
         if what is None:
             what = f"{ncf} corrector failures in one step"
         if kind == SETUP_FAIL:
@@ -531,13 +556,22 @@ class IDAIntegrator:
             else:
                 culprits = []
                 msg = f"{what}; the iteration matrix dF/dy + cj dF/dy' is singular"
+        elif kind == JACOBIAN_FAIL:
+            rows, cols = data
+            culprits = [self.var_names[c] if self.var_names is not None else f"y[{c}]"
+                        for c in cols[:N_CULPRITS]]
+            msg = (f"{what}; the Jacobian dF/dy + cj dF/dy' is not finite (NaN or inf) in "
+                   f"equation(s) {rows[:N_CULPRITS]}, column(s) of "
+                   f"{', '.join(map(repr, culprits))}: a derivative is undefined at this "
+                   "point (e.g. a square root or power of a value that reached zero or "
+                   "went negative)")
         elif kind == RESIDUAL_FAIL:
             r = np.asarray(data)
             bad = np.flatnonzero(~np.isfinite(r))
             culprits = dominant_names(np.where(np.isfinite(r), 0.0, np.inf), self.var_names,
                                       count=max(1, min(N_CULPRITS, bad.size)))
             nonfinite_y = np.flatnonzero(~np.isfinite(self.yy))
-            msg = (f"{what}; the residual is not finite in equation(s) "
+            msg = (f"{what}; the residual is not finite (NaN or inf) in equation(s) "
                    f"{bad[:N_CULPRITS].tolist()} (rows of {', '.join(map(repr, culprits))})")
             if nonfinite_y.size:
                 msg += "; non-finite variables: " + ", ".join(

@@ -32,13 +32,41 @@ from pvgraph.errors import InitializationError
 from pvgraph.solver.ida import dominant_names, wrms_norm
 from pvgraph.solver.linalg import LUSolver
 
-__all__ = ["consistent_initial_conditions", "check_consistency", "derivative_free_columns"]
+__all__ = ["start_values", "consistent_initial_conditions", "check_consistency", "consistency_distance",
+           "derivative_free_columns"]
 
 IC_TOL = 0.01 * 0.33        # weighted Newton-step norm accepted as converged
 IC_MAX_ITERS = 30
 IC_TIME_FRACTION = 1e-3     # time scale of y' unknowns: this fraction of the interval
+AS_IS_DISTANCE = 0.1        # a start this close to consistent (tolerance units) is kept
 LINE_SEARCH_MIN = 1e-4      # smallest line-search factor
 ARMIJO = 1e-4
+
+
+def start_values(fun, t0, y0, yp0, mode, algebraic, alg_given, jacobian, rtol, atol,
+                 t_span_length, h0, var_names=None):
+    """Consistent (y, y') at t0 for the integrators, according to ``calc_initial``.
+
+    ``mode`` None checks the given values and keeps them. ``"algebraic"`` without an
+    ``algebraic`` list first measures the given values: a start already consistent to
+    within a tenth of the tolerance is kept as it is (a singular, non-diagonal dF/dy' such
+    as the Transistor Amplifier's has no variable-wise split to solve for); otherwise the
+    variables whose y' has an identically zero column in dF/dy' are taken as algebraic.
+    """
+    lu = LUSolver()
+    if mode is None:
+        check_consistency(fun, t0, y0, yp0, jacobian, lu, h0, rtol, atol, var_names)
+        return y0.copy(), yp0.copy()
+    mask = algebraic
+    if mode == "algebraic" and not alg_given:
+        r = np.asarray(fun(t0, y0, yp0), dtype=float)
+        dist = consistency_distance(fun, t0, y0, yp0, jacobian, lu, h0, rtol, atol, r)[0]
+        if dist is not None and dist <= AS_IS_DISTANCE:
+            return y0.copy(), yp0.copy()
+        mask = np.zeros(y0.size, dtype=bool)
+        mask[derivative_free_columns(jacobian, t0, y0, yp0, r)] = True
+    return consistent_initial_conditions(fun, t0, y0, yp0, mode, mask, jacobian, rtol, atol,
+                                         t_span_length, var_names)
 
 
 def derivative_free_columns(jacobian, t, y, yp, r):
@@ -113,7 +141,7 @@ def consistent_initial_conditions(fun, t0, y0, yp0, mode, algebraic, jacobian, r
                 + _equation_names(r, var_names))
         ewt = 1.0 / (rtol * np.abs(y) + atol)
         wz = ewt * (cy + hic * cyp)
-        scale = 1.0 / wz
+        scale = 1.0 / (rtol * wz)      # typical size of each unknown: atol/rtol + |y|
         m = jacobian.mixed_matrix(t0, y, yp, r, cy, cyp, scale)
         info = lu.factor(m)
         if info != 0:
@@ -165,26 +193,38 @@ def _raise_singular(info, mode, cy, t0, var_names):
         f"singular in the column of {what} of {name!r}{hint}.")
 
 
+def consistency_distance(fun, t0, y0, yp0, jacobian, lu, h0, rtol, atol, r=None):
+    """How far (y0, yp0) is from consistent, in tolerance units: (distance, dz, ewt, r).
+
+    The measure is the Newton correction a first BDF step of size h0 would have to make,
+    ``J^-1 F`` with ``J = dF/dy + dF/dy' / h0``, in the weighted RMS norm. The distance is
+    None when J is singular (left to the caller).
+    """
+    if r is None:
+        r = np.asarray(fun(t0, y0, yp0), dtype=float)
+    ewt = 1.0 / (rtol * np.abs(y0) + atol)
+    if not np.all(np.isfinite(r)):
+        return np.inf, None, ewt, r
+    m = jacobian.iteration_matrix(t0, y0, yp0, r, 1.0 / h0, ewt, h0)
+    if lu.factor(m) != 0:
+        return None, None, ewt, r
+    dz = lu.solve(r)
+    return wrms_norm(dz, ewt), dz, ewt, r
+
+
 def check_consistency(fun, t0, y0, yp0, jacobian, lu, h0, rtol, atol, var_names=None):
     """Raise InitializationError when (y0, yp0) is inconsistent beyond the tolerance.
 
-    The measure is the Newton correction a first BDF step of size h0 would have to make,
-    ``J^-1 F`` with ``J = dF/dy + dF/dy' / h0``, in the weighted RMS norm; above one the
-    given values are not consistent to within the tolerance. A singular J is left to the
-    integrator, which reports it with the offending column.
+    See ``consistency_distance``; above one the given values are not consistent to within
+    the tolerance. A singular J is left to the integrator, which reports it with the
+    offending column.
     """
-    r = np.asarray(fun(t0, y0, yp0), dtype=float)
-    if not np.all(np.isfinite(r)):
+    dist, dz, ewt, r = consistency_distance(fun, t0, y0, yp0, jacobian, lu, h0, rtol, atol)
+    if dist is not None and not np.isfinite(dist):
         raise InitializationError(
             f"the initial residual at t = {t0:.9g} is not finite; "
             + _equation_names(r, var_names))
-    ewt = 1.0 / (rtol * np.abs(y0) + atol)
-    m = jacobian.iteration_matrix(t0, y0, yp0, r, 1.0 / h0, ewt, h0)
-    if lu.factor(m) != 0:
-        return r
-    dz = lu.solve(r)
-    dist = wrms_norm(dz, ewt)
-    if dist > 1.0:
+    if dist is not None and dist > 1.0:
         names = dominant_names(dz * ewt, var_names)
         raise InitializationError(
             f"the initial values at t = {t0:.9g} are not consistent (distance {dist:.3g} "

@@ -12,12 +12,8 @@ import numpy as np
 
 from pvgraph.errors import InitializationError, SolverError
 from pvgraph.solver.events import EventTracker, normalize_events
-from pvgraph.solver.ida import UROUND, IDAIntegrator, initial_step
-from pvgraph.solver.initial import (
-    check_consistency,
-    consistent_initial_conditions,
-    derivative_free_columns,
-)
+from pvgraph.solver.ida import SOLVER_NAME, UROUND, IDAIntegrator, initial_step
+from pvgraph.solver.initial import start_values
 from pvgraph.solver.linalg import JacobianEvaluator, LUSolver
 from pvgraph.solver.result import DAEResult, DenseOutput, EventRecord
 
@@ -186,31 +182,21 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             return np.asarray(residual(t, y, yp), dtype=float)
     else:
         fun = residual
-    jacobian = JacobianEvaluator(fun, n, jac, jac_sparsity)
+    jacobian = JacobianEvaluator(fun, n, jac, jac_sparsity, typical=atol / rtol)
     lu = LUSolver()
     # IDA's suppressalg (see the suppress_alg parameter)
     error_mask = ((~alg_mask).astype(float)
                   if suppress_alg and alg_given and alg_mask.any() else None)
 
     def initialise(t, y, yp, mode):
-        mask = alg_mask
-        if mode == "algebraic" and not alg_given:
-            r = counted(t, y, yp)
-            mask = np.zeros(n, dtype=bool)
-            mask[derivative_free_columns(jacobian, t, y, yp, r)] = True
-        return consistent_initial_conditions(counted, t, y, yp, mode, mask, jacobian, rtol,
-                                             atol, t_end - t0, var_names)
+        ewt = 1.0 / (rtol * np.abs(y) + atol)
+        span = max(t_end - t, 1e-3 * (t_end - t0))     # an action at t_end still needs one
+        h0 = min(initial_step(yp, ewt if error_mask is None else ewt * error_mask,
+                              span, max_step, first_step), span)
+        return start_values(counted, t, y, yp, mode, alg_mask, alg_given, jacobian, rtol,
+                            atol, span, h0, var_names)
 
-    if calc_initial is None:
-        ewt = 1.0 / (rtol * np.abs(y0) + atol)
-        h0 = initial_step(yp0, ewt if error_mask is None else ewt * error_mask,
-                          t_end - t0, max_step, first_step)
-        if (t0 + h0 - t_end) > 0.0:
-            h0 = t_end - t0
-        check_consistency(counted, t0, y0, yp0, jacobian, lu, h0, rtol, atol, var_names)
-        y, yp = y0.copy(), yp0.copy()
-    else:
-        y, yp = initialise(t0, y0, yp0, calc_initial)
+    y, yp = initialise(t0, y0, yp0, calc_initial)
 
     integ = IDAIntegrator(fun, n, rtol, atol, error_mask, jacobian, lu, max_order, max_step,
                           var_names)
@@ -237,11 +223,12 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     message = "The solver successfully reached the end of the integration interval."
     restart_mode = calc_initial if calc_initial is not None else "algebraic"
     steps_at_start = integ.nst
+    end_state = None            # state after an action exactly at t_end
 
     while True:
         if integ.nst - steps_at_start >= max_steps:
             raise SolverError(
-                f"IDA reached max_steps = {max_steps} at t = {integ.tn:.9g} (h = "
+                f"{SOLVER_NAME} reached max_steps = {max_steps} at t = {integ.tn:.9g} (h = "
                 f"{integ.hh:.3g}) before t_end = {t_end:.9g}; raise max_steps or check "
                 "the model for fast oscillations or chattering events.",
                 t=integ.tn, h=integ.hh)
@@ -260,9 +247,13 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
                     hit = (te, i, ev, ye, ype)
                     break
             tracker.g = g_new
-        t_upto = tn if hit is None else hit[0]
         if t_eval is not None:
-            while i_eval < t_eval.size and t_eval[i_eval] <= t_upto:
+            # an output time equal to the time of an action is reported after the action
+            # (values are right-continuous: a step at t_step has its new value there)
+            t_upto = tn if hit is None else hit[0]
+            before_action = hit is not None and not hit[2].terminal
+            while i_eval < t_eval.size and (t_eval[i_eval] < t_upto or (
+                    t_eval[i_eval] == t_upto and not before_action)):
                 yv, ypv = integ.interpolate(t_eval[i_eval])
                 ts.append(t_eval[i_eval])
                 ys.append(yv)
@@ -287,19 +278,32 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             except InitializationError as exc:
                 raise InitializationError(
                     f"after event {ev.name!r} at t = {te:.9g}: {exc}") from exc
-            integ.reinit(te, ye, ype, t_end)
-            tracker.reset(te, ye, ype, unknown=[i])
             if t_eval is None:
                 ts.append(te)
                 ys.append(ye.copy())
                 yps.append(ype.copy())
+            else:
+                while i_eval < t_eval.size and t_eval[i_eval] <= te:
+                    ts.append(t_eval[i_eval])
+                    ys.append(ye.copy())
+                    yps.append(ype.copy())
+                    i_eval += 1
+            if t_end - te <= END_FUZZ * UROUND * (abs(te) + abs(integ.hused)):
+                # the action happened at the end of the interval (a ramp ending at t_end)
+                end_state = (ye, ype)
+                if t_eval is None:
+                    ts[-1] = t_end
+                break
+            integ.reinit(te, ye, ype, t_end)
+            tracker.reset(te, ye, ype, unknown=[i])
             continue
         if t_end - tn <= END_FUZZ * UROUND * (abs(tn) + abs(integ.hused)):
             break
 
-    if t_eval is not None and hit is None:
+    if t_eval is not None and (hit is None or not hit[2].terminal):
         while i_eval < t_eval.size:
-            yv, ypv = integ.interpolate(t_eval[i_eval])
+            yv, ypv = (integ.interpolate(t_eval[i_eval]) if end_state is None
+                       else (end_state[0].copy(), end_state[1].copy()))
             ts.append(t_eval[i_eval])
             ys.append(yv)
             yps.append(ypv)

@@ -4,30 +4,56 @@ SUNDIALS IDA is reached through scikit-sundae (``pip install pvgraph[sundials]``
 only when this backend is called. It is the reference against which ``solve_dae`` is
 checked for accuracy and speed.
 
-Differences from ``solve_dae`` worth knowing:
+How the backend drives IDA:
 
-* scikit-sundae does not switch on IDA's suppressalg option, so algebraic variables stay in
-  IDA's local error test (``solve_dae`` leaves them out).
-* Events with an ``action`` stop IDA; the action is applied and IDA is restarted from the
-  event time with consistent initialisation (IDACalcIC), as ``solve_dae`` does.
-* ``stats`` has ``nsteps`` only when output is at every internal step (``t_eval=None``);
-  ``nlu``, ``netf``, ``ncfn``, ``nni`` and ``nroot`` are not exposed by scikit-sundae and
-  are None. ``nre`` counts every residual call, including IDA's difference-quotient ones.
-* Dense output (``dense_output=True``) is a cubic Hermite interpolant through the internal
-  steps, not IDA's own polynomial.
+* Consistent initial values come from pvgraph's own calculation (``initial.start_values``,
+  the same as ``solve_dae``) and IDA is started from them without IDACalcIC, whose fixed
+  trial step (the whole interval by default) fails on stiff hydraulic circuits.
+* The first step is IDA's estimate (0.001 of the interval, ||h y'|| <= 1/2) capped by the
+  fastest time scale of the system, |dF_j/dy'_j| / |dF_j/dy_j| over the differential
+  variables, so long runs from a steady state do not start with a step of hours.
+* IDA is stepped one internal step at a time towards ``t_end`` (stop time ``t_end``);
+  the backend counts the steps, so ``max_steps`` and ``max_wall_time`` stop a chattering
+  run with a clear message, and ``stats["nsteps"]`` is known with or without ``t_eval``.
+  Output times are interpolated by IDA within its last step (IDA_NORMAL with the output
+  time already passed).
+* Events are located by IDA's rootfinding. At an event with an action, IDA stops, the
+  action is applied, pvgraph recomputes consistent values and IDA is re-initialised; an
+  output time equal to the event time reports the value after the action.
+* With ``jac_sparsity`` and n >= ``SPARSE_MIN_N`` IDA uses its sparse direct solver
+  (SuperLU_MT) with the user Jacobian's entries in the pattern's CSC order.
+* SUNDIALS' own messages (printed by scikit-sundae) are captured and put into the
+  ``SolverError`` raised on failure, not printed.
+
+Differences from ``solve_dae`` worth knowing: scikit-sundae does not switch on IDA's
+suppressalg option, so algebraic variables stay in IDA's local error test; ``nlu``,
+``netf``, ``ncfn`` and ``nni`` are not exposed and are None; dense output
+(``dense_output=True``) is a cubic Hermite interpolant through the internal steps.
 """
 
 from __future__ import annotations
+
+import contextlib
+import io
+import time
+import warnings
 
 import numpy as np
 import scipy.sparse as sp
 
 from pvgraph.errors import InitializationError, SolverError
 from pvgraph.solver.events import normalize_events
-from pvgraph.solver.linalg import SPARSE_MIN_N
+from pvgraph.solver.ida import dominant_names, initial_step
+from pvgraph.solver.initial import start_values
+from pvgraph.solver.linalg import SPARSE_MIN_N, JacobianEvaluator
 from pvgraph.solver.result import DAEResult, EventRecord
 
-__all__ = ["solve_dae_sundials"]
+__all__ = ["solve_dae_sundials", "time_scale_step"]
+
+SOLVER_NAME = "SUNDIALS IDA"
+TIME_SCALE_FRACTION = 0.5   # first step at most this fraction of the fastest time scale
+IDA_SUCCESS, IDA_TSTOP_RETURN, IDA_ROOT_RETURN = 0, 1, 2
+SPARSE_WARNING = "Custom sparse Jacobian approximation will be ignored"
 
 
 def _import_sksundae():
@@ -42,11 +68,54 @@ def _import_sksundae():
     return sksundae
 
 
+def time_scale_step(jacobian, t, y, yp, r, differential):
+    """Fastest time scale |dF_j/dy'_j| / |dF_j/dy_j| over the differential variables.
+
+    Returns inf when no differential variable has both diagonal entries.
+    """
+    n = y.size
+    scale = np.maximum(np.abs(y), 1.0)
+    dfdy = jacobian.mixed_matrix(t, y, yp, r, np.ones(n), np.zeros(n), scale)
+    dfdyp = jacobian.mixed_matrix(t, y, yp, r, np.zeros(n), np.ones(n), scale)
+    a = np.abs(dfdy.diagonal() if sp.issparse(dfdy) else np.diag(dfdy))
+    m = np.abs(dfdyp.diagonal() if sp.issparse(dfdyp) else np.diag(dfdyp))
+    ok = differential & (a > 0.0) & (m > 0.0) & np.isfinite(a) & np.isfinite(m)
+    return float(np.min(m[ok] / a[ok])) if ok.any() else np.inf
+
+
+class _NonFinite(Exception):
+    """Raised inside the residual callback to stop IDA at a NaN or inf residual."""
+
+
+class _Residual:
+    """scikit-sundae residual callback: counts calls, stops IDA at a non-finite residual.
+
+    scikit-sundae ignores return values, and IDA accepts NaN residuals without failing its
+    tests (it then shrinks the step for ever); an exception makes IDASolve return at once.
+    """
+
+    def __init__(self, residual):
+        self.residual = residual
+        self.calls = 0
+        self.bad = None         # (t, rows) of the last non-finite residual
+
+    def __call__(self, t, y, yp, res):
+        self.calls += 1
+        res[:] = self.residual(t, y, yp)
+        if not np.isfinite(np.add.reduce(res)):
+            self.bad = (t, np.flatnonzero(~np.isfinite(res)))
+            raise _NonFinite()
+
+
 def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None,
                        jac=None, jac_sparsity=None, events=None, t_eval=None, max_step=None,
                        first_step=None, calc_initial="algebraic", max_order=5,
-                       max_steps=100_000, var_names=None, dense_output=False):
+                       max_steps=100_000, var_names=None, dense_output=False,
+                       max_wall_time=None):
     """Solve F(t, y, y') = 0 with SUNDIALS IDA; arguments and result as ``solve_dae``.
+
+    ``max_steps`` counts IDA's internal steps over the whole run; ``max_wall_time`` [s], if
+    given, stops a run that takes longer. Both raise SolverError naming the time reached.
 
     References
     ----------
@@ -56,128 +125,224 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
     """
     sksundae = _import_sksundae()
     t0, t_end = float(t_span[0]), float(t_span[1])
-    if not t_end > t0:
-        raise ValueError(f"t_span must be increasing, got {t_span!r}")
+    if not (np.isfinite(t0) and np.isfinite(t_end) and t_end > t0):
+        raise ValueError(f"t_span must be finite and increasing, got {t_span!r}")
     y = np.array(y0, dtype=float).ravel()
     yp = np.array(yp0, dtype=float).ravel()
     n = y.size
+    if yp.size != n:
+        raise ValueError(f"y0 has {n} entries but yp0 has {yp.size}")
+    if not (np.all(np.isfinite(y)) and np.all(np.isfinite(yp))):
+        raise InitializationError("y0 and yp0 must be finite")
+    rtol = float(rtol)
     atol_arr = np.broadcast_to(np.asarray(atol, dtype=float), (n,)).copy()
-    if algebraic is None:
-        alg_idx = None
-    else:
+    if not (rtol > 0.0 and np.all(atol_arr > 0.0)):
+        raise ValueError("rtol and atol must be positive")
+    if calc_initial not in ("algebraic", "all", None):
+        raise ValueError(f"calc_initial must be 'algebraic', 'all' or None, got {calc_initial!r}")
+    alg_mask = np.zeros(n, dtype=bool)
+    if algebraic is not None:
         a = np.asarray(algebraic)
-        alg_idx = np.flatnonzero(a).tolist() if a.dtype == bool else a.astype(int).tolist()
+        alg_mask[np.flatnonzero(a) if a.dtype == bool else a.astype(int)] = True
+    if var_names is not None:
+        var_names = [str(v) for v in var_names]
     event_list = normalize_events(events)
-    calls = [0]
+    if t_eval is not None:
+        t_eval = np.asarray(t_eval, dtype=float).ravel()
+        if np.any(np.diff(t_eval) < 0.0):
+            raise ValueError("t_eval must be sorted")
+        if t_eval.size and (t_eval[0] < t0 or t_eval[-1] > t_end):
+            raise ValueError("t_eval must lie within t_span")
 
-    def resfn(t, yy, ypp, res):
-        calls[0] += 1
-        res[:] = residual(t, yy, ypp)
+    res_cb = _Residual(residual)
 
-    options = dict(rtol=float(rtol), atol=atol_arr, algebraic_idx=alg_idx,
+    def fun(t, yy, ypp):
+        res_cb.calls += 1
+        return np.asarray(residual(t, yy, ypp), dtype=float)
+
+    jacobian = JacobianEvaluator(fun, n, jac, jac_sparsity, typical=atol_arr / rtol)
+    differential = ~alg_mask
+
+    def initialise(t, yy, ypp, mode):
+        """pvgraph's consistent values and the first step from the system's time scales."""
+        ewt = 1.0 / (rtol * np.abs(yy) + atol_arr)
+        span = max(t_end - t, 1e-3 * (t_end - t0))     # an action at t_end still needs one
+        h0 = min(initial_step(ypp, ewt, span, max_step, first_step), span)
+        with np.errstate(all="ignore"):
+            yy, ypp = start_values(fun, t, yy, ypp, mode, alg_mask, algebraic is not None,
+                                   jacobian, rtol, atol_arr, span, h0, var_names)
+            if first_step is None:
+                ewt = 1.0 / (rtol * np.abs(yy) + atol_arr)
+                h0 = min(initial_step(ypp, ewt, span, max_step), span)
+                tau = time_scale_step(jacobian, t, yy, ypp, fun(t, yy, ypp), differential)
+                h0 = min(h0, TIME_SCALE_FRACTION * tau)
+        return yy, ypp, h0
+
+    options = dict(rtol=rtol, atol=atol_arr,
+                   algebraic_idx=np.flatnonzero(alg_mask).tolist() or None,
                    max_order=int(max_order), max_num_steps=int(max_steps),
-                   first_step=0.0 if first_step is None else float(first_step),
                    max_step=0.0 if max_step is None else float(max_step))
-    use_sparse = jac_sparsity is not None and n >= SPARSE_MIN_N
-    if use_sparse:
+    if jac_sparsity is not None and n >= SPARSE_MIN_N:
         pattern = sp.csc_matrix(jac_sparsity, dtype=float)
         pattern.data[:] = 1.0
         pattern.eliminate_zeros()
         pattern.sort_indices()
         options.update(linsolver="sparse", sparsity=pattern)
-        rows = pattern.indices
-        cols = np.repeat(np.arange(n), np.diff(pattern.indptr))
-    if jac is not None:
-        if use_sparse:
+        if jac is not None:
+            rows = pattern.indices
+            cols = np.repeat(np.arange(n), np.diff(pattern.indptr))
+
             def jacfn(t, yy, ypp, res, cj, JJ):
                 m = jac(t, yy, ypp, cj)
-                JJ[:] = np.asarray(sp.csr_matrix(m)[rows, cols]).ravel() if sp.issparse(m) \
-                    else np.asarray(m)[rows, cols]
-        else:
-            def jacfn(t, yy, ypp, res, cj, JJ):
-                m = jac(t, yy, ypp, cj)
-                JJ[:, :] = m.toarray() if sp.issparse(m) else m
+                JJ[:] = (np.asarray(sp.csr_matrix(m)[rows, cols]).ravel() if sp.issparse(m)
+                         else np.asarray(m)[rows, cols])
+            options["jacfn"] = jacfn
+    elif jac is not None:
+        def jacfn(t, yy, ypp, res, cj, JJ):
+            m = jac(t, yy, ypp, cj)
+            JJ[:, :] = m.toarray() if sp.issparse(m) else m
         options["jacfn"] = jacfn
     if event_list:
         def eventsfn(t, yy, ypp, out):
             for i, ev in enumerate(event_list):
                 out[i] = ev.fun(t, yy, ypp)
-        eventsfn.terminal = [bool(ev.terminal or ev.action is not None) for ev in event_list]
+        eventsfn.terminal = [False] * len(event_list)
         eventsfn.direction = [int(ev.direction) for ev in event_list]
         options.update(eventsfn=eventsfn, num_events=len(event_list))
 
+    captured = io.StringIO()
+
+    def failure(what, t, h=None):
+        """SolverError for a failed IDA call, with SUNDIALS' message and non-finite rows."""
+        text = f"{SOLVER_NAME} failed at t = {t:.9g}: {what}"
+        sundials_msg = " ".join(captured.getvalue().split())
+        if sundials_msg:
+            text += f" (SUNDIALS: {sundials_msg})"
+        culprits = []
+        if res_cb.bad is not None:
+            tb, rows = res_cb.bad
+            weighted = np.zeros(n)
+            weighted[rows] = np.inf
+            culprits = dominant_names(weighted, var_names, count=max(1, min(3, rows.size)))
+            text += (f"; NaN or inf at t = {tb:.9g} in "
+                     f"equation(s) {rows[:3].tolist()} (rows of "
+                     f"{', '.join(map(repr, culprits))})")
+        return SolverError(text + ".", t=t, h=h, culprits=culprits)
+
     ts, ys, yps, records = [], [], [], []
-    nsteps, nje = 0, 0
-    t_start = t0
-    mode = calc_initial
+    i_eval = 0
+    nsteps = nje = 0
+    started = time.perf_counter()
     message = "The solver successfully reached the end of the integration interval."
-    while True:
-        ic = {"algebraic": "yp0", "all": "y0", None: None}[mode]
-        opts = dict(options, calc_initcond=ic)
-        if ic is not None:
-            opts["calc_init_dt"] = t_end - t_start
-        solver = sksundae.ida.IDA(resfn, **opts)
-        if t_eval is None:
-            tspan = np.array([t_start, t_end])
-            wanted = None
-        else:
-            t_eval = np.asarray(t_eval, dtype=float)
-            wanted = t_eval[(t_eval >= t_start) & (t_eval <= t_end)]
-            if t_start > t0:
-                wanted = wanted[wanted > t_start]
-            inner = wanted[wanted > t_start]
-            tspan = np.concatenate([[t_start], inner])
-            if tspan.size == 1:
+    mode = calc_initial
+    t_start = t0
+    solver = None
+    with contextlib.redirect_stdout(captured), warnings.catch_warnings(), \
+            np.errstate(all="ignore"):
+        warnings.filterwarnings("ignore", message=SPARSE_WARNING)
+        while True:
+            try:
+                y, yp, h0 = initialise(t_start, y, yp, mode)
+            except InitializationError as exc:
+                where = "" if t_start == t0 else f"after the event at t = {t_start:.9g}: "
+                raise InitializationError(f"{SOLVER_NAME} backend: {where}{exc}") from exc
+            solver = sksundae.ida.IDA(res_cb, calc_initcond=None, first_step=h0, **options)
+            try:
+                solver.init_step(t_start, y, yp)
+            except _NonFinite:
+                raise failure("the residual is not finite", t_start) from None
+            except RuntimeError as exc:
+                raise failure(str(exc), t_start) from exc
+            if t_eval is None:
+                ts.append(t_start)
+                ys.append(y.copy())
+                yps.append(yp.copy())
+            else:
+                while i_eval < t_eval.size and t_eval[i_eval] <= t_start:
+                    ts.append(t_eval[i_eval])
+                    ys.append(y.copy())
+                    yps.append(yp.copy())
+                    i_eval += 1
+            t_last = t_start
+            hit = None
+            while True:
+                if nsteps >= max_steps:
+                    raise SolverError(
+                        f"{SOLVER_NAME} reached max_steps = {max_steps} at t = {t_last:.9g} "
+                        f"before t_end = {t_end:.9g}; raise max_steps or check the model for "
+                        "fast oscillations or chattering events.", t=t_last)
+                if max_wall_time is not None and time.perf_counter() - started > max_wall_time:
+                    raise SolverError(
+                        f"{SOLVER_NAME} exceeded max_wall_time = {max_wall_time:g} s at t = "
+                        f"{t_last:.9g} after {nsteps} steps, before t_end = {t_end:.9g}.",
+                        t=t_last)
+                try:
+                    out = solver.step(t_end, "onestep", t_end)
+                except _NonFinite:
+                    raise failure("the residual is not finite", res_cb.bad[0]) from None
+                if out.status < 0:
+                    raise failure(out.message, float(t_last))
+                tn = float(out.t)
+                if out.status == IDA_ROOT_RETURN:
+                    info = np.asarray(out.i_events[-1])
+                    for i in np.flatnonzero(info):
+                        ev = event_list[i]
+                        records.append(EventRecord(tn, int(i), ev.name, out.y.copy(),
+                                                   out.yp.copy(), int(np.sign(info[i]))))
+                        if hit is None and (ev.terminal or ev.action is not None):
+                            hit = (tn, int(i), ev, out.y.copy(), out.yp.copy())
+                    if hit is None:
+                        continue
+                    nsteps += 1     # the step that found the event is left behind
+                elif tn > t_last:
+                    nsteps += 1
+                else:
+                    continue
+                # outputs up to tn (before an action at tn: strictly before it)
+                upto, inclusive = tn, hit is None or hit[2].terminal
+                while i_eval < t_eval.size if t_eval is not None else False:
+                    te_i = t_eval[i_eval]
+                    if te_i > upto or (te_i == upto and not inclusive):
+                        break
+                    if te_i == tn:
+                        yv, ypv = out.y.copy(), out.yp.copy()
+                    else:
+                        got = solver.step(te_i, "normal", t_end)
+                        yv, ypv = got.y.copy(), got.yp.copy()
+                    ts.append(te_i)
+                    ys.append(yv)
+                    yps.append(ypv)
+                    i_eval += 1
+                if t_eval is None:
+                    ts.append(tn)
+                    ys.append(out.y.copy())
+                    yps.append(out.yp.copy())
+                t_last = tn
+                if hit is not None or out.status == IDA_TSTOP_RETURN or tn >= t_end:
+                    break
+            nje += int(out.njev or 0)
+            if hit is None:
                 break
-            if tspan.size == 2:     # two points would select one-step output
-                tspan = np.array([t_start, 0.5 * (t_start + tspan[1]), tspan[1]])
-        try:
-            soln = solver.solve(tspan, y, yp)
-        except RuntimeError as exc:
-            if "IDACalcIC" in str(exc):
-                raise InitializationError(f"SUNDIALS IDA at t = {t_start:.9g}: {exc}") from exc
-            raise SolverError(f"SUNDIALS IDA failed after t = {t_start:.9g}: {exc}",
-                              t=t_start) from exc
-        if not soln.success:
-            raise SolverError(f"SUNDIALS IDA failed at t = {soln.t[-1]:.9g}: {soln.message}",
-                              t=float(soln.t[-1]))
-        nje += int(soln.njev)
-        st, sy, syp = np.atleast_1d(soln.t), np.atleast_2d(soln.y), np.atleast_2d(soln.yp)
-        stop_event = None
-        if soln.t_events is not None:
-            for k, te in enumerate(soln.t_events):
-                for i in np.flatnonzero(soln.i_events[k]):
-                    ev = event_list[i]
-                    records.append(EventRecord(float(te), int(i), ev.name,
-                                               soln.y_events[k].copy(),
-                                               soln.yp_events[k].copy(),
-                                               int(np.sign(soln.i_events[k][i]))))
-                    if stop_event is None and (ev.terminal or ev.action is not None):
-                        stop_event = (float(te), int(i), ev, soln.y_events[k].copy(),
-                                      soln.yp_events[k].copy())
-        if wanted is None:
-            nsteps += st.size - 1 - (1 if stop_event is not None else 0)
-            ts.extend(st)
-            ys.extend(sy)
-            yps.extend(syp)
-        else:
-            keep = np.isin(st, wanted)
-            if stop_event is not None:
-                keep[-1] = st[-1] in wanted and st[-1] != stop_event[0]
-            ts.extend(st[keep])
-            ys.extend(sy[keep])
-            yps.extend(syp[keep])
-        if stop_event is None:
-            break
-        te, i, ev, ye, ype = stop_event
-        if ev.terminal:
-            message = f"A terminal event ({ev.name!r}) occurred at t = {te:.9g}."
-            break
-        ye, ype = ev.apply(te, ye, ype)
-        t_start, y, yp = te, ye, ype
-        mode = calc_initial if calc_initial is not None else "algebraic"
-        if t_end - t_start <= 1e-12 * max(1.0, abs(t_end)):
-            break
+            te, i, ev, ye, ype = hit
+            if ev.terminal:
+                message = f"A terminal event ({ev.name!r}) occurred at t = {te:.9g}."
+                break
+            ye, ype = ev.apply(te, ye, ype)
+            t_start, y, yp = te, ye, ype
+            mode = calc_initial if calc_initial is not None else "algebraic"
+            if t_end - t_start <= 1e-12 * max(1.0, abs(t_end)):
+                y, yp, _ = initialise(t_start, y, yp, mode)
+                if t_eval is None:
+                    ts.append(t_end)
+                    ys.append(y.copy())
+                    yps.append(yp.copy())
+                break
+        if t_eval is not None:
+            while i_eval < t_eval.size:     # output times at an action exactly at t_end
+                ts.append(t_eval[i_eval])
+                ys.append(y.copy())
+                yps.append(yp.copy())
+                i_eval += 1
 
     t_out = np.asarray(ts, dtype=float)
     y_out = np.vstack(ys) if ys else np.empty((0, n))
@@ -188,7 +353,7 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
         # later rows win at repeated times (the state after an event reset)
         last = np.r_[np.diff(t_out) > 0.0, True]
         sol = CubicHermiteSpline(t_out[last], y_out[last], yp_out[last], axis=0)
-    stats = {"nsteps": nsteps if t_eval is None else None, "nre": calls[0], "nje": nje,
+    stats = {"nsteps": nsteps, "nre": res_cb.calls, "nje": nje + jacobian.nje,
              "nlu": None, "netf": None, "ncfn": None, "nni": None, "nroot": None}
     return DAEResult(t=t_out, y=y_out, yp=yp_out, events=records,
                      t_events=np.array([r.t for r in records], dtype=float), stats=stats,

@@ -1,0 +1,206 @@
+"""Failure classes of both backends: events at the end, output at events, starts, messages."""
+
+import numpy as np
+import pytest
+
+from pvgraph.errors import SolverError
+from pvgraph.solver import Event, solve_dae, solve_dae_sundials
+from pvgraph.solver.testset import TRANSISTOR, mescd
+
+BACKENDS = [solve_dae, solve_dae_sundials]
+
+
+def _needs(solver):
+    if solver is solve_dae_sundials:
+        pytest.importorskip("sksundae")
+
+
+class Switch:
+    """A first-order lag whose input steps from 0 to 1 at an event (mode held here)."""
+
+    def __init__(self, t_switch, tau=0.05):
+        self.on = False
+        self.tau = tau
+        self.event = Event(lambda t, y, yp: t - t_switch, direction=1, action=self.flip,
+                           name="switch")
+
+    def flip(self, t, y, yp):
+        self.on = True
+
+    def residual(self, t, y, yp):
+        u = 1.0 if self.on else 0.0
+        return np.array([self.tau * yp[0] + y[0] - u, y[1] - u])
+
+    def exact(self, t, t_switch):
+        return np.where(t < t_switch, 0.0, 1.0 - np.exp(-(t - t_switch) / self.tau))
+
+
+@pytest.mark.parametrize("solver", BACKENDS)
+def test_run_ending_exactly_at_an_event_time(solver):
+    _needs(solver)
+    sw = Switch(0.3)
+    res = solver(sw.residual, (0.0, 0.3), [0.0, 0.0], [0.0, 0.0], algebraic=[1],
+                 events=[sw.event], rtol=1e-6, atol=1e-9)
+    assert res.t[-1] == pytest.approx(0.3, abs=1e-12)
+    assert np.all(res.y[:, 0] == 0.0)  # nothing moves before the switch
+    # and a switch just inside the interval: applied, then the run ends at it
+    sw = Switch(0.3 * (1.0 - 1e-15))
+    res = solver(sw.residual, (0.0, 0.3), [0.0, 0.0], [0.0, 0.0], algebraic=[1],
+                 events=[sw.event], rtol=1e-6, atol=1e-9)
+    assert res.t[-1] == pytest.approx(0.3, abs=1e-12) and res.y[-1, 1] == 1.0
+
+
+@pytest.mark.parametrize("solver", BACKENDS)
+def test_output_time_equal_to_an_event_time_gets_the_value_after_it(solver):
+    _needs(solver)
+    sw = Switch(0.1)
+    t_eval = [0.05, 0.1, 0.2]
+    res = solver(sw.residual, (0.0, 0.3), [0.0, 0.0], [0.0, 0.0], algebraic=[1],
+                 events=[sw.event], t_eval=t_eval, rtol=1e-8, atol=1e-10)
+    np.testing.assert_array_equal(res.t, t_eval)
+    np.testing.assert_allclose(res.y[:, 1], [0.0, 1.0, 1.0], atol=1e-9)
+    np.testing.assert_allclose(res.y[:, 0], sw.exact(res.t, 0.1), atol=1e-6)
+    res = solver(sw.residual, (0.0, 0.3), [0.0, 0.0], [0.0, 0.0], algebraic=[1],
+                 events=[Switch(0.1).event], t_eval=[0.1])
+    assert res.t.tolist() == [0.1]
+
+
+@pytest.mark.parametrize("solver", BACKENDS)
+def test_step_count_is_known_with_output_times(solver):
+    _needs(solver)
+    fun = lambda t, y, yp: yp + y      # noqa: E731
+    kw = dict(rtol=1e-6, atol=1e-9)
+    every = solver(fun, (0.0, 5.0), [1.0], [-1.0], **kw)
+    some = solver(fun, (0.0, 5.0), [1.0], [-1.0], t_eval=[1.0, 2.0, 5.0], **kw)
+    assert every.stats["nsteps"] == some.stats["nsteps"] == len(every.t) - 1
+    np.testing.assert_allclose(some.y[:, 0], np.exp(-some.t), rtol=1e-4)
+
+
+def test_ida_backend_stops_a_chattering_run_at_max_steps(capsys):
+    pytest.importorskip("sksundae")
+    flips = Event(lambda t, y, yp: y[0], action=lambda t, y, yp: (-y, -yp), name="flip")
+
+    def fun(t, y, yp):
+        return np.array([yp[0] - (1.0 if y[0] < 0.0 else -1.0)])
+
+    with pytest.raises(SolverError, match="SUNDIALS IDA reached max_steps = 300"):
+        solve_dae_sundials(fun, (0.0, 10.0), [1e-3], [-1.0], events=[flips], max_steps=300)
+    assert capsys.readouterr().out == ""
+
+
+def test_ida_backend_names_a_nan_residual_and_prints_nothing(capsys):
+    pytest.importorskip("sksundae")
+
+    def fun(t, y, yp):
+        # the square root's argument jumps from 0.5 to -0.5 at t = 1 (a table that ends)
+        return np.array([yp[0] + y[0], y[1] - np.sqrt(0.5 - float(t > 1.0))])
+
+    with pytest.raises(SolverError) as info:
+        solve_dae_sundials(fun, (0.0, 2.0), [1.0, 1.0], [-1.0, 0.0], algebraic=[1],
+                           var_names=["piston.x", "valve.q"])
+    text = str(info.value)
+    assert "SUNDIALS IDA failed" in text and "not finite" in text and "'valve.q'" in text
+    assert 1.0 < info.value.t < 1.2        # a trial step across t = 1
+    assert capsys.readouterr().out == ""
+
+
+def test_ida_backend_starts_a_stiff_circuit_from_pvgraph_initial_values():
+    # a 1 cm^3 node behind a 20 mm^2 orifice, charged from 100 bar over a long run: IDACalcIC
+    # with a trial step of the whole interval fails here; pvgraph's values do not
+    pytest.importorskip("sksundae")
+    beta, vol, cd_a, rho, p_s = 1.6e9, 1e-6, 0.7 * 20e-6, 870.0, 1e7
+
+    def fun(t, y, yp):
+        p, q = y
+        dp = p_s - p        # orifice law regularised below 0.1 bar
+        return np.array([vol / beta * yp[0] - q,
+                         (q - cd_a * np.sqrt(2.0 / rho) * dp / np.sqrt(abs(dp) + 1e4)) * 1e4])
+
+    for t_end in (1.0, 3e4):
+        res = solve_dae_sundials(fun, (0.0, t_end), [0.0, 0.0], [0.0, 0.0], algebraic=[1],
+                                 rtol=1e-6, atol=[10.0, 1e-10])
+        assert res.y[-1, 0] == pytest.approx(p_s, rel=1e-5)
+
+
+def test_ida_backend_uses_the_sparse_solver_with_a_user_jacobian(recwarn):
+    pytest.importorskip("sksundae")
+    import scipy.sparse as sp
+    n = 300
+    k = 2.0 + np.arange(n) / n
+    lap = sp.diags([np.full(n - 1, 1.0), -k, np.full(n - 1, 1.0)], [-1, 0, 1], format="csc")
+
+    def fun(t, y, yp):
+        return yp - lap @ y
+
+    def jac(t, y, yp, c):
+        return (c * sp.identity(n) - lap).tocsc()
+
+    y0 = np.ones(n)
+    res = solve_dae_sundials(fun, (0.0, 1.0), y0, lap @ y0, jac=jac, jac_sparsity=lap + sp.eye(n),
+                             rtol=1e-8, atol=1e-10, t_eval=[1.0], calc_initial=None)
+    ours = solve_dae(fun, (0.0, 1.0), y0, lap @ y0, jac=jac, jac_sparsity=lap + sp.eye(n),
+                     rtol=1e-8, atol=1e-10, t_eval=[1.0], calc_initial=None)
+    from scipy.sparse.linalg import expm_multiply
+    exact = expm_multiply(lap, y0)
+    np.testing.assert_allclose(res.y[-1], exact, rtol=1e-5)
+    np.testing.assert_allclose(ours.y[-1], exact, rtol=1e-5)
+    assert not [w for w in recwarn if "sparse" in str(w.message).lower()]
+
+
+def test_consistent_start_with_singular_mass_matrix_is_accepted_by_default():
+    # the Transistor Amplifier from its published consistent values, no algebraic list,
+    # no Jacobian and default calc_initial
+    p = TRANSISTOR
+    res = solve_dae(p.residual, p.t_span, p.y0, p.yp0, rtol=1e-6, atol=1e-6)
+    assert res.t[-1] == p.t_span[1]
+    assert mescd(res.y[-1], p.y_ref, 1e-6, 1e-6) > 5.0
+
+
+def test_builtin_messages_name_the_builtin_solver():
+    with pytest.raises(SolverError, match="^pvgraph BDF reached max_steps"):
+        solve_dae(lambda t, y, yp: yp + y, (0.0, 100.0), [1.0], [-1.0], max_steps=5)
+
+
+def test_nan_in_the_jacobian_is_reported_as_not_finite():
+    def fun(t, y, yp):
+        return np.array([yp[0] + y[0], y[1] - np.sqrt(max(1.0 - t, 0.0))])
+
+    def jac(t, y, yp, c):
+        slope = 0.0 if t < 1.0 else np.nan      # d/dy of the model is undefined beyond t = 1
+        return np.array([[1.0 + c, 0.0], [slope, 1.0]])
+
+    with pytest.raises(SolverError) as info:
+        solve_dae(fun, (0.0, 2.0), [1.0, 1.0], [-1.0, 0.0], algebraic=[1], jac=jac,
+                  var_names=["a", "b"])
+    text = str(info.value)
+    assert "not finite" in text and "singular" not in text and "'a'" in text
+
+
+def test_robertson_with_finite_differences_stays_physical():
+    # rtol 1e-4, atol 1e-8, every component in the error test: the difference increments
+    # must resolve y2 ~ 1e-13 (the published solution at t = 1e11 is y1 = 2.08e-8)
+    def rober(t, y, yp):
+        return np.array([yp[0] + 0.04 * y[0] - 1e4 * y[1] * y[2],
+                         yp[1] - 0.04 * y[0] + 1e4 * y[1] * y[2] + 3e7 * y[1] ** 2,
+                         y[0] + y[1] + y[2] - 1.0])
+
+    res = solve_dae(rober, (0.0, 1e11), [1.0, 0.0, 0.0], [-0.04, 0.04, 0.0], rtol=1e-4,
+                    atol=1e-8, algebraic=[2], suppress_alg=False)
+    assert res.y[:, 0].min() > -1e-6 and res.y[:, 2].max() < 1.0 + 1e-6
+    assert res.y[-1, 0] == pytest.approx(0.2083340149701255e-7, rel=0.2)
+
+
+def test_finite_difference_jacobian_of_a_long_chain_detects_its_sparsity():
+    # 400 volumes joined by linear resistances, no jac and no jac_sparsity
+    n = 400
+
+    def fun(t, y, yp):
+        q = np.diff(np.r_[1.0, y]) * -1.0        # flow into each node from its left
+        q_out = np.r_[q[1:], 0.0]
+        return yp - 50.0 * (q - q_out)
+
+    res = solve_dae(fun, (0.0, 0.05), np.zeros(n), np.r_[50.0, np.zeros(n - 1)], rtol=1e-5,
+                    atol=1e-8)
+    s = res.stats
+    assert s["nre"] < s["nni"] + 10 * s["nje"] + 2 * n + 50      # grouped, not n per matrix
+    assert np.all(np.diff(res.y[-1]) <= 1e-9) and 0.0 < res.y[-1, 0] < 1.0
