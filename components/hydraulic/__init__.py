@@ -2,13 +2,18 @@
 
 from .check_valve import CheckValve
 from .cylinder import Cylinder
+from .flow_control import FlowControlValve, ShuttleValve
 from .fluid import MINERAL_OIL, CavitationWarning, Fluid
 from .orifices import LaminarOrifice, Orifice
+from .pressure_valves import (CounterbalanceValve, DynamicReliefValve, PilotReliefValve,
+                              PressureReducingValve, ReliefValve, SequenceValve)
 from .solenoid import OnOffValve, PWMValve, TimedOnOffValve
 from .sources import FlowInput, FlowSource, Plug, PressureInput, PressureSource, Pump, Tank
 from .variable_orifice import VariableOrifice
 from .volumes import PistonChamber, VolumeNode
 
 __all__ = ["Fluid", "MINERAL_OIL", "CavitationWarning", "Tank", "PressureSource", "PressureInput", "FlowSource", "FlowInput", "Pump", "Plug",
-           "Orifice", "LaminarOrifice", "VariableOrifice", "CheckValve", "VolumeNode",
+           "Orifice", "LaminarOrifice", "VariableOrifice", "CheckValve", "ReliefValve", "DynamicReliefValve",
+           "PilotReliefValve", "PressureReducingValve", "SequenceValve", "CounterbalanceValve", "ShuttleValve",
+           "FlowControlValve", "VolumeNode",
            "PistonChamber", "Cylinder", "OnOffValve", "TimedOnOffValve", "PWMValve"]
