@@ -2,6 +2,8 @@
 
 from .check_valve import CheckValve
 from .cylinder import Cylinder
+from .directional_valves import (DirectionalValve22, DirectionalValve32, DirectionalValve42,
+                                 DirectionalValve43, ServoValve)
 from .flow_control import FlowControlValve, ShuttleValve
 from .fluid import MINERAL_OIL, CavitationWarning, Fluid
 from .orifices import LaminarOrifice, Orifice
@@ -15,5 +17,6 @@ from .volumes import PistonChamber, VolumeNode
 __all__ = ["Fluid", "MINERAL_OIL", "CavitationWarning", "Tank", "PressureSource", "PressureInput", "FlowSource", "FlowInput", "Pump", "Plug",
            "Orifice", "LaminarOrifice", "VariableOrifice", "CheckValve", "ReliefValve", "DynamicReliefValve",
            "PilotReliefValve", "PressureReducingValve", "SequenceValve", "CounterbalanceValve", "ShuttleValve",
-           "FlowControlValve", "VolumeNode",
+           "FlowControlValve", "DirectionalValve43",
+           "DirectionalValve42", "DirectionalValve32", "DirectionalValve22", "ServoValve", "VolumeNode",
            "PistonChamber", "Cylinder", "OnOffValve", "TimedOnOffValve", "PWMValve"]
