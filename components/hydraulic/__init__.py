@@ -1,11 +1,13 @@
 """Hydraulic components."""
 
+from .accumulator import GasAccumulator
 from .check_valve import CheckValve
 from .cylinder import Cylinder
 from .directional_valves import (DirectionalValve22, DirectionalValve32, DirectionalValve42,
                                  DirectionalValve43, ServoValve)
 from .flow_control import FlowControlValve, ShuttleValve
 from .fluid import MINERAL_OIL, CavitationWarning, Fluid
+from .lines import PiLine, segmented_line
 from .orifices import LaminarOrifice, Orifice
 from .pressure_valves import (CounterbalanceValve, DynamicReliefValve, PilotReliefValve,
                               PressureReducingValve, ReliefValve, SequenceValve)
@@ -18,5 +20,6 @@ __all__ = ["Fluid", "MINERAL_OIL", "CavitationWarning", "Tank", "PressureSource"
            "Orifice", "LaminarOrifice", "VariableOrifice", "CheckValve", "ReliefValve", "DynamicReliefValve",
            "PilotReliefValve", "PressureReducingValve", "SequenceValve", "CounterbalanceValve", "ShuttleValve",
            "FlowControlValve", "DirectionalValve43",
-           "DirectionalValve42", "DirectionalValve32", "DirectionalValve22", "ServoValve", "VolumeNode",
+           "DirectionalValve42", "DirectionalValve32", "DirectionalValve22", "ServoValve", "GasAccumulator",
+           "PiLine", "segmented_line", "VolumeNode",
            "PistonChamber", "Cylinder", "OnOffValve", "TimedOnOffValve", "PWMValve"]
