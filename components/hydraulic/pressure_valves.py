@@ -26,8 +26,8 @@ state, and stiff stops at 0 (the seat) and ``x_max``::
 ``PilotReliefValve``: a small pilot relief (setting ``p_set``, opening over ``dp_pilot``, area
 ``A_pilot``) fed through the main spool's orifice ``A_orifice`` from P; the pilot flow drops the
 pressure across the main spool, which opens when that drop exceeds ``dp_main`` and is fully
-open at ``dp_main + dp_main_open``. With ``p_c`` the pilot chamber pressure (an internal
-algebraic unknown)::
+open at ``dp_main + dp_main_open``. With ``p_c = P.p - dp_o`` the pilot chamber pressure
+(``dp_o`` is the internal algebraic unknown)::
 
     q_o = orifice(A_orifice, P.p - p_c) = orifice(A_pilot * ramp(p_c - T.p; p_set, dp_pilot), p_c - T.p)
     q_m = orifice(A_main * ramp(P.p - p_c; dp_main, dp_main_open), P.p - T.p)
@@ -182,10 +182,12 @@ class PilotReliefValve(Component):
 
     Params = PilotReliefValveParams
     ports = {"P": Hydraulic("inlet (protected line)"), "T": Hydraulic("outlet to tank")}
-    variables = {"p_c": Variable("Pa", 0.0, 1e6, "pilot chamber pressure")}
+    variables = {"dp_o": Variable("Pa", 0.0, 1e5,
+                                  "drop across the main spool's orifice, P.p - p_c")}
 
     def equations(self, v, p):
-        P, T, p_c = v.P.p, v.T.p, v.p_c
+        P, T = v.P.p, v.T.p
+        p_c = v.observe("p_c", P - v.dp_o, "Pa", "pilot chamber pressure")
         A_pilot = p.A_leak + p.A_pilot * smoothstep_ramp(p_c - T, p.p_set, p.dp_pilot)
         q_o = v.observe("q_pilot", orifice_flow(p.Cd, p.A_orifice, P - p_c, p.rho, p.dp_t),
                         "m^3/s", "pilot flow")
