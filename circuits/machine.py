@@ -51,7 +51,7 @@ class MachineSpec:
     p_shock = bar(150)                      # [Pa] swing cross-port relief cracking pressure
     boom_mass = 1500.0                      # [kg] lifted mass (incl. boom), vertical
     bore, rod, stroke = 0.063, 0.036, 0.25  # [m] boom cylinder
-    p_cb = bar(180)                         # [Pa] counterbalance setting
+    p_cb = bar(100)                         # [Pa] counterbalance setting (2 x holding)
     cb_ratio = 3.0                          # [-] counterbalance pilot ratio
     D_motor = cm3(50) / (2 * math.pi)       # [m^3/rad] swing motor
     J_swing = 40.0                          # [kg m^2] swing inertia at the motor shaft
@@ -70,9 +70,9 @@ class MachineSpec:
 SPEC = MachineSpec()
 
 #: lift (A, 7.5 V) into the cushion and the end stop, hold, swing out and stop, then lower
-#: (B, 4 V) while the swing brakes on its shock valves
+#: (B, 5 V) while the swing brakes on its shock valves
 CYCLE = {"t": (0.0, 0.2, 0.3, 3.0, 3.1, 4.6, 4.7, 7.5),
-         "U_boom": (6.0, 6.0, 7.5, 7.5, 6.0, 6.0, 4.0, 4.0),
+         "U_boom": (6.0, 6.0, 7.5, 7.5, 6.0, 6.0, 5.0, 5.0),
          "U_swing": (6.0, 6.0, 6.0, 6.0, 7.5, 7.5, 6.0, 6.0)}
 
 

