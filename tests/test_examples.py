@@ -184,10 +184,24 @@ def _linearize_pvg32(r, tmp_path):
     assert r["model"].dc_gain()[0, 0] == pytest.approx(0.028 / (11.5 * 0.945), rel=0.1)
 
 
+@check("machine_cycle")
+def _machine_cycle(r, tmp_path):
+    assert 14.0 <= r["margin_min_bar"] and r["margin_max_bar"] <= 21.0   # LS margin 20 bar
+    assert r["x_max"] < 0.25 + 1e-3 and r["F_stop_hold"] > 0.0        # held by the end stop
+    assert r["q_shock_max"] > 0.0 and 150.0 < r["p_swing_peak_bar"] < 210.0   # shock valves
+    assert r["v_lower"] < 0.0 and r["x_end"] < r["x_top"] - 0.01       # lowered, metered
+    useful = r["E_pot"] + r["E_kin_end"] + r["E_stop"]
+    assert r["E_cyl"] == pytest.approx(useful, rel=0.01, abs=20.0)    # boom energy balance
+    assert r["E_shaft"] > r["E_hyd"] > 0.0
+    assert (tmp_path / "machine_cycle.png").exists()
+
+
 SCRIPTS = sorted(p for p in EXAMPLES.glob("*.py") if not p.name.startswith("_"))
+SLOW = {"machine_cycle"}   # a 6 s cycle of a 180-unknown circuit: about a minute
 
 
-@pytest.mark.parametrize("path", SCRIPTS, ids=[p.stem for p in SCRIPTS])
+@pytest.mark.parametrize("path", [pytest.param(p, marks=pytest.mark.slow) if p.stem in SLOW
+                                  else p for p in SCRIPTS], ids=[p.stem for p in SCRIPTS])
 def test_example_runs(path, tmp_path):
     module = _load(path)
     assert hasattr(module, "main"), f"{path.name} has no main(outdir)"

@@ -23,6 +23,8 @@ from pvgraph import expr as E
 from pvgraph.component import Component, Hydraulic, Params
 from pvgraph.laws import orifice_flow
 
+from .fluid import rho_field
+
 
 def smoothstep_ramp(dp, p_crack, dp_open):
     """0 below ``p_crack``, 1 above ``p_crack + dp_open``, C1 smoothstep in between."""
@@ -46,7 +48,7 @@ class CheckValveParams(Params):
     A_leak: float = Field(1e-12, gt=0.0, le=1e-3,
                           description="Leakage area when closed, for regularity [m^2]")
     Cd: float = Field(0.6, gt=0.0, le=1.0, description="Discharge coefficient [-] (report A.1)")
-    rho: float = Field(870.0, gt=100.0, le=3000.0, description="Oil density [kg/m^3]")
+    rho: float = rho_field()
     dp_t: float = Field(1e3, gt=0.0, le=1e7,
                         description="Laminar-turbulent transition pressure drop [Pa] "
                                     "(regularisation of eq. A.4)")

@@ -24,18 +24,20 @@ from pydantic import Field
 from pvgraph.component import Component, Hydraulic, Params
 from pvgraph.laws import orifice_flow, orifice_transition_pressure
 
+from .fluid import nu_field, rho_field
+
 
 class OrificeParams(Params):
     A: float = Field(..., gt=0.0, le=1.0, description="Opening area [m^2]")
     Cd: float = Field(0.6, gt=0.0, le=1.0,
                       description="Discharge coefficient [-] (0.6, report table 4.7)")
-    rho: float = Field(870.0, gt=100.0, le=3000.0, description="Oil density [kg/m^3]")
+    rho: float = rho_field()
     dp_t: float | None = Field(
         None, gt=0.0, description="Laminar-turbulent transition pressure drop [Pa]; default from "
                                   "Re_crit")
     Re_crit: float = Field(100.0, gt=0.0, le=1e5,
                            description="Critical Reynolds number of the transition [-]")
-    nu: float = Field(3.2e-5, gt=0.0, le=1e-2, description="Kinematic viscosity [m^2/s]")
+    nu: float = nu_field()
 
     def transition(self) -> float:
         """The transition pressure drop in use [Pa]."""

@@ -64,6 +64,8 @@ from pvgraph.component import Component, Hydraulic, Params, SignalIn, Variable, 
 from pvgraph.laws import orifice_flow, reg_root
 from pvgraph.units import bar, lpm_per_bar, mm2
 
+from .fluid import rho_field
+
 # Default flow maps (see the module docstring): duty cycle [-] -> flow at dp_ref [m^3/s].
 NC_DT = (0.0, 0.05, 0.10, 0.15, 0.20, 0.30, 0.40, 0.50, 0.60, 0.70, 0.80, 0.90, 1.00)
 NC_Q = (0.0, 0.0, 0.15e-6, 0.8e-6, 2.3e-6, 5.3e-6, 8.3e-6, 11.3e-6, 14.3e-6, 17.3e-6,
@@ -95,7 +97,7 @@ class OnOffValveParams(Params):
         description="Open flow-pressure coefficient, laminar law [m^3/(s Pa)] (rig L2: 1.6111 "
                     "L/(bar min), report table 4.8); give A or K")
     Cd: float = Field(0.6, gt=0.0, le=1.0, description="Discharge coefficient [-] (table 4.7)")
-    rho: float = Field(870.0, gt=100.0, le=3000.0, description="Oil density [kg/m^3]")
+    rho: float = rho_field()
     dp_t: float = Field(1e3, gt=0.0, le=1e7,
                         description="Laminar-turbulent transition pressure drop [Pa] (turbulent "
                                     "law only)")

@@ -43,6 +43,8 @@ from pvgraph import expr as E
 from pvgraph.component import Component, Hydraulic, Mechanical, Params
 from pvgraph.laws import flow_force, orifice_flow, smooth_abs, smooth_pos, smooth_sign
 
+from .fluid import rho_field
+
 
 def regularised_abs_dp(dp, dp_t):
     """``dp^2 / sqrt(dp^2 + dp_t^2)``: |dp| for |dp| >> dp_t, matching ``orifice_flow``.
@@ -81,7 +83,7 @@ class VariableOrificeParams(Params):
         math.radians(69.0), ge=0.0, le=math.pi / 2,
         description="Jet angle of the flow force [rad] (69 deg for a sharp-edged port; the PVG "
                     "main spool's angled slots: 0.48 rad, report eq. 4.70)")
-    rho: float = Field(870.0, gt=100.0, le=3000.0, description="Oil density [kg/m^3]")
+    rho: float = rho_field()
     dp_t: float = Field(
         5e3, gt=0.0, le=1e7,
         description="Laminar-turbulent transition pressure drop [Pa] (regularisation of eq. A.4)")

@@ -23,6 +23,11 @@ air fraction ``air`` > 0, the pressure-dependent effective modulus of oil with f
 
 normalised at atmospheric pressure, with ``p_abs = p + p_atm`` (gauge ``p``), smoothly limited
 from below at ``p_min_abs``.
+
+Cavitation (:mod:`components.hydraulic.fluid`): the compliance ``V / beta`` gains a term that
+grows without bound as the absolute pressure nears the vapour pressure ``p_vap``, so a chamber
+never falls below it; each chamber warns once (``CavitationWarning``, naming it) when it gets
+there.
 """
 
 from __future__ import annotations
@@ -35,31 +40,8 @@ from pvgraph import expr as E
 from pvgraph.component import Component, Hydraulic, Mechanical, Params, der
 from pvgraph.laws import smooth_max
 
-P_ATM = 101325.0
-
-
-class FluidCompliance(Params):
-    """Shared fluid parameters of components with a volume."""
-
-    beta: float = Field(7e8, gt=1e6, le=1e11,
-                        description="Bulk modulus of the oil [Pa] (7000 bar, report A.5)")
-    air: float = Field(0.0, ge=0.0, le=0.2,
-                       description="Entrained air volume fraction at atmospheric pressure [-] "
-                                   "(0: constant bulk modulus; report figure A.8)")
-    kappa: float = Field(1.4, ge=1.0, le=1.4, description="Polytropic exponent of the air [-]")
-    p_min_abs: float = Field(2e4, gt=0.0, description="Lower limit of the absolute pressure "
-                                                      "used in the air term [Pa]")
-
-
-def effective_bulk_modulus(p, fp: FluidCompliance):
-    """Effective bulk modulus at gauge pressure ``p`` (constant when ``air == 0``)."""
-    if fp.air == 0.0:
-        return E.const(fp.beta) if isinstance(p, E.Expr) else fp.beta
-    p_abs = smooth_max(p + P_ATM, fp.p_min_abs, 0.1 * fp.p_min_abs)
-    ratio = fp.air / (1.0 - fp.air)
-    inv = 1.0 / fp.beta + ratio * (P_ATM / p_abs) ** (1.0 / fp.kappa) / (fp.kappa * p_abs)
-    return 1.0 / inv
-
+from .fluid import (P_ATM, FluidCompliance, cavitation_warning, compliance,  # noqa: F401
+                    effective_bulk_modulus)
 
 class VolumeNodeParams(FluidCompliance):
     V: float = Field(..., gt=0.0, le=10.0, description="Volume [m^3]")
@@ -75,9 +57,11 @@ class VolumeNode(Component):
     def starts(self, p):
         return {"port.p": p.p0}
 
+    modes = {"cavitated": 0.0}
+
     def equations(self, v, p):
-        beta = effective_bulk_modulus(v.port.p, p)
-        return [p.V / beta * der(v.port.p) - v.port.q]
+        cavitation_warning(v, v.port.p, p, "the volume")
+        return [p.V * compliance(v.port.p, p) * der(v.port.p) - v.port.q]
 
 
 def chamber_volume(V0, A_signed, x, V_min):
@@ -93,9 +77,10 @@ def chamber_continuity(V, p, q, A_signed, x, fp: FluidCompliance):
     """Residual of the continuity equation of a chamber with a moving wall (report A.7)::
 
         V / beta(p) * der(p) = q - A_signed * der(x)
+
+    with ``1/beta`` including the cavitation term (:func:`components.hydraulic.fluid.compliance`).
     """
-    beta = effective_bulk_modulus(p, fp)
-    return V / beta * der(p) - (q - A_signed * der(x))
+    return V * compliance(p, fp) * der(p) - (q - A_signed * der(x))
 
 
 class PistonChamberParams(FluidCompliance):
@@ -136,10 +121,13 @@ class PistonChamber(Component):
     ports = {"port": Hydraulic("oil connection of the chamber"),
              "flange": Mechanical("the piston")}
 
+    modes = {"cavitated": 0.0}
+
     def starts(self, p):
         return {"port.p": p.p0}
 
     def equations(self, v, p):
+        cavitation_warning(v, v.port.p, p, "the chamber")
         A_s = p.side * p.A
         x, pr = v.flange.x, v.port.p
         V = v.observe("V", chamber_volume(p.V0, A_s, x, p.V_min), "m^3", "chamber volume")

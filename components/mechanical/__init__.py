@@ -1,4 +1,5 @@
-"""Mechanical translational components: masses, springs, friction, stops and sources.
+"""Mechanical components: translational masses, springs, friction, stops, sources, sensors and
+transmissions, and the rotational shaft domain (inertia, shaft, torque and speed sources).
 
 Port ``flange``: position ``x`` [m] and force ``f`` [N], the force the node exerts on the
 component in +x (positive into the component). Two-flange components use ``a`` and ``b``.
@@ -7,9 +8,17 @@ component in +x (positive into the component). Two-flange components use ``a`` a
 from .end_stop import EndStop
 from .friction import Damper, Friction, TwoFlangeDamper
 from .inputs import ForceInput, PositionInput
-from .mass import LEVER_EQUIVALENT_MASS, MAIN_SPOOL_MASS, Fixed, SpoolMass
+from .mass import LEVER_EQUIVALENT_MASS, MAIN_SPOOL_MASS, Fixed, Mass, SpoolMass
+from .rotational import (AngleSensor, Inertia, RotationalDamper, RotationalFixed, ShaftSpringDamper,
+                         SpeedInput, SpeedSensor, SpeedSource, TorqueInput, TorqueSensor,
+                         TorqueSource)
+from .sensors import ForceSensor, PositionSensor, VelocitySensor
+from .transmissions import Lever, RackPinion
 from .springs import CenteringSpring, LinearSpring, TwoFlangeSpring, TwoStageSpring
 
-__all__ = ["SpoolMass", "Fixed", "LinearSpring", "TwoFlangeSpring", "TwoStageSpring",
+__all__ = ["SpoolMass", "Mass", "Fixed", "LinearSpring", "TwoFlangeSpring", "TwoStageSpring",
            "CenteringSpring", "Friction", "Damper", "TwoFlangeDamper", "EndStop", "ForceInput",
-           "PositionInput", "MAIN_SPOOL_MASS", "LEVER_EQUIVALENT_MASS"]
+           "PositionInput", "PositionSensor", "VelocitySensor", "ForceSensor", "RackPinion", "Lever",
+           "Inertia", "ShaftSpringDamper", "RotationalDamper", "TorqueSource", "TorqueInput",
+           "SpeedSource", "SpeedInput", "RotationalFixed", "SpeedSensor", "AngleSensor",
+           "TorqueSensor", "MAIN_SPOOL_MASS", "LEVER_EQUIVALENT_MASS"]

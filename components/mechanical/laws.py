@@ -19,7 +19,8 @@ import math
 from pvgraph import expr as E
 from pvgraph.laws import coulomb_friction, smooth_abs
 
-__all__ = ["stribeck_friction", "contact_penetration", "contact_indicator"]
+__all__ = ["stribeck_friction", "contact_penetration", "contact_indicator", "onset_penetration",
+           "onset_indicator"]
 
 
 def _exp(x):
@@ -70,3 +71,23 @@ def contact_indicator(depth, eps):
     """
     s = smooth_abs(depth, eps)
     return _where(depth > 0.0, 0.5 * (1.0 + depth / s), 0.5 * eps * eps / (s * (s - depth)))
+
+
+def onset_penetration(depth, eps):
+    """Penetration ``max(depth, 0)`` with a quadratic onset, exactly zero in free travel.
+
+    ``0`` for ``depth <= 0``, ``depth^2 / (2 eps)`` up to ``eps``, then ``depth - eps/2``:
+    continuously differentiable, and free of any force before contact (unlike
+    :func:`contact_penetration`, whose tail reaches into free travel). A contact of stiffness
+    ``k`` carrying a force ``F`` (beyond the onset) penetrates ``F/k + eps/2``.
+    """
+    c = onset_indicator(depth, eps)
+    return _where(depth < eps, 0.5 * eps * c * c, depth - 0.5 * eps)
+
+
+def onset_indicator(depth, eps):
+    """d(onset_penetration)/d(depth): ``clip(depth/eps, 0, 1)``."""
+    s = depth / eps
+    if isinstance(s, E.Expr):
+        return E.clip(s, 0.0, 1.0)
+    return min(max(s, 0.0), 1.0)

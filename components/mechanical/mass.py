@@ -16,6 +16,10 @@
     flange.x = x0
 
 It takes whatever force the node needs.
+
+``Mass``: a generic translating body with gravity along x and viscous friction::
+
+    der(flange.x) = v,   m * der(v) = flange.f + m * g - b * v
 """
 
 from __future__ import annotations
@@ -27,7 +31,8 @@ from pvgraph.component import Component, Mechanical, Params, Variable, der
 MAIN_SPOOL_MASS = 0.185          # [kg] report eq. 4.67
 LEVER_EQUIVALENT_MASS = 1.569    # [kg] report eq. 4.82
 
-__all__ = ["SpoolMass", "SpoolMassParams", "Fixed", "FixedParams", "MAIN_SPOOL_MASS",
+__all__ = ["SpoolMass", "SpoolMassParams", "Mass", "MassParams", "Fixed", "FixedParams",
+           "MAIN_SPOOL_MASS",
            "LEVER_EQUIVALENT_MASS"]
 
 
@@ -72,3 +77,33 @@ class Fixed(Component):
 
     def equations(self, v, p):
         return [v.flange.x - p.x0]
+
+
+class MassParams(Params):
+    m: float = Field(..., gt=0.0, le=1e6, description="Mass [kg]")
+    g: float = Field(0.0, ge=-100.0, le=100.0,
+                     description="Gravity along +x [m/s^2] (-9.81: x points up)")
+    b: float = Field(0.0, ge=0.0, le=1e8, description="Viscous friction to ground [N s/m]")
+    x0: float = Field(0.0, ge=-1e3, le=1e3, description="Initial position [m]")
+    v0: float = Field(0.0, ge=-100.0, le=100.0, description="Initial velocity [m/s]")
+
+
+class Mass(Component):
+    """A translating body under gravity: ``m der(v) = flange.f + m g - b v``.
+
+    ``g`` is the acceleration of gravity along +x (``-9.81`` when x points up, 0 when the
+    motion is horizontal). Observed: kinetic energy ``E_kin = m v^2 / 2`` and potential energy
+    ``E_pot = -m g (x - x0)``.
+    """
+
+    Params = MassParams
+    ports = {"flange": Mechanical("the body; all forces on it act through this node")}
+    variables = {"v": Variable("m/s", lambda p: p.v0, 0.1, "velocity")}
+
+    def starts(self, p):
+        return {"flange.x": p.x0}
+
+    def equations(self, v, p):
+        v.observe("E_kin", 0.5 * p.m * v.v * v.v, "J", "kinetic energy")
+        v.observe("E_pot", -p.m * p.g * (v.flange.x - p.x0), "J", "potential energy")
+        return [der(v.flange.x) - v.v, p.m * der(v.v) - (v.flange.f + p.m * p.g - p.b * v.v)]

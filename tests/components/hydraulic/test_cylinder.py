@@ -31,9 +31,11 @@ def _driven(x0, v, port_A, port_B, **kw):
 def test_port_flows_are_the_volume_change_rates_and_force_balances_pressures():
     x, v, p_A, p_B = 0.05, 0.1, bar(50), bar(5)
     system = _driven(x, v, PressureSource(p0=p_A), PressureSource(p0=p_B)).compile()
-    values = {"drive.flange.x": x, "dut.A.q": A_A * v, "dut.B.q": -A_B * v}
+    values = {"drive.flange.x": x, "dut.A.q": A_A * v, "dut.B.q": -A_B * v,
+              "dut.flange.f": -(A_A * p_A - A_B * p_B)}   # no end-stop force in free travel
     y = vector(system, values)
-    yp = vector(system, {"drive.flange.x": v, "dut.A.q": 0.0, "dut.B.q": 0.0})
+    yp = vector(system, {"drive.flange.x": v, "dut.A.q": 0.0, "dut.B.q": 0.0,
+                         "dut.flange.f": 0.0})
     assert np.max(np.abs(system.residual(0.0, y, yp))) < 1e-8 * A_A * v
     assert value(system, y, "dut.flange.f") == pytest.approx(-(A_A * p_A - A_B * p_B))
 
@@ -60,7 +62,7 @@ def test_bench_is_well_posed_and_jacobian_exact(K_leak):
 @requires_solver
 def test_closed_cylinder_driven_by_a_position_ramp():
     """Both ports plugged: p = p0 + beta ln(V(0) / V(t)) in each chamber."""
-    x0, v, p0, T = 0.1, 0.01, bar(10), 0.1
+    x0, v, p0, T = 0.1, 0.01, bar(100), 0.1
     t = np.linspace(0.0, T, 6)
     sol = simulate(_driven(x0, v, Plug(), Plug(), p0_A=p0, p0_B=p0), T, rtol=1e-8, t_eval=t)
     x = x0 + v * t
@@ -88,3 +90,57 @@ def test_pump_extends_the_rod_against_a_damper():
     assert sol.final("dut.A.p") == pytest.approx(b * v / A_A, rel=1e-5)
     assert sol.final("dut.B.q") == pytest.approx(-A_B * v, rel=1e-5)
     assert sol.final("dut.F") == pytest.approx(b * v, rel=1e-5)
+
+
+@requires_solver
+def test_rod_stops_at_the_end_of_its_stroke():
+    """Statics at the stop: k_stop * (penetration - eps/2) = A_A p_s: the stop takes the force."""
+    p_s, k_stop = bar(50), 1e9
+    c = Circuit("stop")
+    c.add("supply", PressureSource(p0=p_s))
+    c.add("dut", Cylinder(**GEOMETRY, k_stop=k_stop))
+    c.add("tank", Tank())
+    c.add("load", MassDamper(m=20.0, b=5e3, x0=0.15))
+    c.connect("supply.port", "dut.A")
+    c.connect("dut.B", "tank.port")
+    c.connect("dut.flange", "load.flange")
+    sol = simulate(c, 1.0, rtol=1e-7)
+    v_hit = A_A * p_s / 5e3   # terminal speed against the damper
+    overshoot = sol["load.flange.x"].max() - GEOMETRY["stroke"]
+    assert A_A * p_s / k_stop < overshoot < v_hit * np.sqrt(20.0 / k_stop)  # below undamped bound
+    eps = Cylinder(**GEOMETRY).params.eps_stop
+    x_rest = GEOMETRY["stroke"] + A_A * p_s / k_stop + eps / 2
+    assert sol.final("load.flange.x") - GEOMETRY["stroke"] == pytest.approx(
+        x_rest - GEOMETRY["stroke"], rel=1e-4)
+    assert sol.final("dut.F_stop") == pytest.approx(A_A * p_s, rel=1e-4)
+
+
+@requires_solver
+def test_cushion_brakes_the_rod_before_the_stop():
+    """In the cushion the rod creeps at v = F / (b + d_cush w(x)), w the documented smoothstep."""
+    p_s, b, d_cush = bar(20), 1e4, 4e5
+    def run(**kw):
+        c = Circuit("cushion")
+        c.add("supply", PressureSource(p0=p_s))
+        c.add("dut", Cylinder(**GEOMETRY, **kw))
+        c.add("tank", Tank())
+        c.add("load", MassDamper(m=5.0, b=b, x0=0.05))
+        c.connect("supply.port", "dut.A")
+        c.connect("dut.B", "tank.port")
+        c.connect("dut.flange", "load.flange")
+        return simulate(c, 2.0, rtol=1e-7, t_eval=np.linspace(0, 2.0, 2001))
+    free, cushioned = run(), run(l_cush=0.02, d_cush=d_cush)
+    x, vel = cushioned["load.flange.x"], cushioned["load.v"]
+    inside = (x > GEOMETRY["stroke"] - 0.004) & (x < GEOMETRY["stroke"] - 0.001)
+    assert inside.any()
+    u = np.clip((x[inside] - GEOMETRY["stroke"]) / 0.02 + 1.0, 0.0, 1.0)
+    w = u * u * (3.0 - 2.0 * u)
+    np.testing.assert_allclose(vel[inside], A_A * p_s / (b + d_cush * w), rtol=1e-3)
+    assert free["load.v"].max() == pytest.approx(A_A * p_s / b, rel=1e-3)
+
+
+def test_end_stop_parameters_are_checked():
+    with pytest.raises(ParameterError, match="l_cush"):
+        Cylinder(**GEOMETRY, l_cush=0.15, d_cush=1e3)
+    with pytest.raises(ParameterError, match="d_cush"):
+        Cylinder(**GEOMETRY, d_cush=1e3)

@@ -1,0 +1,97 @@
+"""Gas-charged (bladder or piston) accumulator with polytropic gas and bladder bottoming.
+
+Port ``port`` (oil). The gas of volume ``V0`` is precharged to ``p_pre`` (gauge) with the oil
+side empty, and compressed polytropically with exponent ``n`` (1: isothermal, slow cycles; 1.4:
+adiabatic nitrogen, fast cycles). Above the precharge the oil volume is::
+
+    V_oil(p) = V0 * (1 - ((p_pre + p_atm) / (p + p_atm))^(1/n))
+
+The accumulator is a nonlinear compliance on its port, ``C(p) der(port.p) = port.q`` (positive
+into it), with::
+
+    C(p) = V_dead / beta + dV_oil/dp * ramp(p; p_pre, dp_b)
+    dV_oil/dp = V0 / n * (p_pre + p_atm)^(1/n) * (p + p_atm)^(-1/n - 1)
+
+Below the precharge the bladder is bottomed on the poppet: only the oil in ``V_dead`` is left,
+so the port pressure follows ``beta / V_dead`` per volume drawn. ``ramp`` is the C1 smoothstep
+from 0 at ``p_pre`` to 1 at ``p_pre + dp_b`` (``dp_b = 1e-3 (p_pre + p_atm)``). The oil volume
+is also integrated, ``der(V_oil) = port.q``, for the gas state.
+
+Observed: ``p_gas``, ``V_gas`` and the energy stored in the gas relative to the precharge
+state, ``E_gas = (p_gas_abs V_gas - p_pre_abs V0) / (n - 1)`` (``p_abs V ln(V0 / V_gas)`` for
+``n = 1``).
+"""
+
+from __future__ import annotations
+
+from pydantic import Field, model_validator
+
+from pvgraph import expr as E
+from pvgraph.component import Component, Hydraulic, Params, Variable, der
+
+from pvgraph.laws import smooth_max
+
+from .check_valve import smoothstep_ramp
+from .fluid import BETA, P_ATM
+
+__all__ = ["GasAccumulator"]
+
+
+class GasAccumulatorParams(Params):
+    V0: float = Field(..., gt=0.0, le=1.0, description="Gas volume at precharge (size) [m^3]")
+    p_pre: float = Field(..., gt=0.0, le=1e8, description="Precharge pressure (gauge) [Pa]")
+    n: float = Field(1.4, ge=1.0, le=1.67,
+                     description="Polytropic exponent of the gas [-] (1: isothermal, 1.4: "
+                                 "adiabatic nitrogen)")
+    V_dead: float = Field(1e-6, gt=0.0, le=1e-2,
+                          description="Oil volume at the port when bottomed [m^3]")
+    beta: float = Field(BETA, gt=1e6, le=1e11, description="Bulk modulus of the oil [Pa]")
+    p_atm: float = Field(P_ATM, gt=5e4, le=1.2e5,
+                         description="Atmospheric reference of the gauge pressures [Pa]")
+    p0: float | None = Field(None, ge=-1e5, le=1e9,
+                             description="Initial port pressure (gauge) [Pa]; default p_pre "
+                                         "(empty)")
+
+    @model_validator(mode="after")
+    def _start(self):
+        if self.p0 is not None and self.p0 > 1e3 * (self.p_pre + self.p_atm):
+            raise ValueError("p0 is beyond the compression range of the gas")
+        return self
+
+    @property
+    def start_pressure(self) -> float:
+        """Initial port pressure: ``p0``, or the precharge."""
+        return self.p_pre if self.p0 is None else self.p0
+
+    def oil_volume(self, p: float) -> float:
+        """Oil volume at the gauge port pressure ``p`` above the precharge [m^3]."""
+        if p <= self.p_pre:
+            return 0.0
+        return self.V0 * (1.0 - ((self.p_pre + self.p_atm) / (p + self.p_atm)) ** (1.0 / self.n))
+
+
+class GasAccumulator(Component):
+    """Gas-charged accumulator: polytropic gas, precharge, bottoming (``der(V_oil) = port.q``)."""
+
+    Params = GasAccumulatorParams
+    ports = {"port": Hydraulic("oil connection")}
+    variables = {"V_oil": Variable("m^3", lambda p: p.oil_volume(p.start_pressure), 1e-4,
+                                   "oil volume in the accumulator")}
+
+    def starts(self, p):
+        return {"port.p": p.start_pressure}
+
+    def equations(self, v, p):
+        p_pre_abs = p.p_pre + p.p_atm
+        p_abs = smooth_max(v.port.p + p.p_atm, 0.5 * p_pre_abs, 1e-4 * p_pre_abs)
+        dV_dp = p.V0 / p.n * p_pre_abs ** (1.0 / p.n) * p_abs ** (-1.0 / p.n - 1.0)
+        C = p.V_dead / p.beta + dV_dp * smoothstep_ramp(v.port.p, p.p_pre, 1e-3 * p_pre_abs)
+        V_gas = v.observe("V_gas", p.V0 - v.V_oil, "m^3", "gas volume")
+        p_gas_abs = p_pre_abs * (p.V0 / V_gas) ** p.n
+        p_gas = v.observe("p_gas", p_gas_abs - p.p_atm, "Pa", "gas pressure (gauge)")
+        if p.n == 1.0:
+            energy = p_pre_abs * p.V0 * E.log(p.V0 / V_gas)
+        else:
+            energy = (p_gas_abs * V_gas - p_pre_abs * p.V0) / (p.n - 1.0)
+        v.observe("E_gas", energy, "J", "energy stored in the gas since precharge")
+        return [der(v.V_oil) - v.port.q, C * der(v.port.p) - v.port.q]

@@ -1,0 +1,160 @@
+"""The hydraulic fluid: one description shared by every hydraulic part.
+
+Pressures in the library are gauge, relative to the atmospheric reference ``p_atm``; the
+absolute pressure is ``p_abs = p + p_atm``. A fluid is described by
+
+- ``rho`` density [kg/m^3] and ``nu`` kinematic viscosity [m^2/s] (restrictions, lines),
+- ``beta`` bulk modulus of the pure oil [Pa] and ``air`` the entrained free-air volume fraction
+  at atmospheric pressure, compressed polytropically with exponent ``kappa`` (volumes, lines),
+- ``p_vap`` the (absolute) vapour pressure [Pa], below which the oil cavitates.
+
+Effective bulk modulus with free air (Merritt, *Hydraulic Control Systems*, 1967, eq. 2-12;
+PVG 32 report figure A.8), normalised at atmospheric pressure::
+
+    1/beta_e = 1/beta + (air / (1 - air)) * (p_atm / p_air)^(1/kappa) / (kappa * p_air)
+    p_air = max(p_abs, p_min_abs)                     (smoothly)
+
+Cavitation limit: near the vapour pressure the oil releases vapour and gas, so a chamber takes
+up any outflow with a growing cavity instead of falling below ``p_vap``. The compliance gets a
+term that grows without bound as ``p_abs -> p_vap`` and is exactly zero above
+``p_vap + 10 dp_cav`` (0.32 bar absolute with the defaults; twice continuously differentiable
+there)::
+
+    V / beta_c(p) = V / beta_e(p) + V / beta * max(dp_cav / s - 1/10, 0)^3
+    s = max(p_abs - p_vap, 1e-4 dp_cav)                (smoothly)
+
+Drawing a volume ``dV`` out of a closed chamber of volume ``V`` lowers its pressure only to
+about ``p_vap + dp_cav * sqrt(V * dp_cav / (2 * beta * dV))`` (about 40 Pa for 1 % of
+its volume with the defaults), never below.
+
+``Fluid`` is the description on its own; a hydraulic part's parameter model takes the fields it
+uses under the same names, so ``Orifice(A=..., **oil.args_for(Orifice))`` applies one fluid
+to any part. ``MINERAL_OIL`` holds the library defaults (ISO VG 32 mineral oil near 40 C).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+from pydantic import Field
+
+from pvgraph import expr as E
+from pvgraph.component import Params
+from pvgraph.errors import PlausibilityWarning
+from pvgraph.laws import smooth_max
+
+__all__ = ["Fluid", "FluidCompliance", "MINERAL_OIL", "P_ATM", "RHO", "NU",
+           "effective_bulk_modulus", "cavitation_compliance", "cavitation_warning",
+           "CavitationWarning", "rho_field", "nu_field"]
+
+P_ATM = 101325.0   # [Pa] standard atmosphere, the gauge reference
+RHO = 870.0        # [kg/m^3] mineral hydraulic oil near 40 C
+NU = 3.2e-5        # [m^2/s] ISO VG 32 at 40 C (32 cSt; PVG 32 report eq. 4.25)
+BETA = 7e8         # [Pa] pure oil, 7000 bar (PVG 32 report A.5)
+
+
+def rho_field(**kw):
+    """The density field every hydraulic part declares (one default for the library)."""
+    return Field(RHO, gt=100.0, le=3000.0, description="Oil density [kg/m^3]", **kw)
+
+
+def nu_field(**kw):
+    """The kinematic viscosity field every hydraulic part declares."""
+    return Field(NU, gt=0.0, le=1e-2, description="Kinematic viscosity [m^2/s]", **kw)
+
+
+class FluidCompliance(Params):
+    """Fluid fields of parts with a volume: bulk modulus, air, vapour pressure."""
+
+    beta: float = Field(BETA, gt=1e6, le=1e11,
+                        description="Bulk modulus of the oil [Pa] (7000 bar, report A.5)")
+    air: float = Field(0.0, ge=0.0, le=0.2,
+                       description="Entrained air volume fraction at atmospheric pressure [-] "
+                                   "(0: constant bulk modulus; report figure A.8)")
+    kappa: float = Field(1.4, ge=1.0, le=1.4, description="Polytropic exponent of the air [-]")
+    p_min_abs: float = Field(2e4, gt=0.0, description="Lower limit of the absolute pressure "
+                                                      "used in the air term [Pa]")
+    p_vap: float = Field(2e3, gt=0.0, le=9e4,
+                         description="Vapour (cavitation) pressure, absolute [Pa]")
+    dp_cav: float = Field(3e3, gt=0.0, le=5e4,
+                          description="Width of the cavitation limit above p_vap [Pa]")
+    p_atm: float = Field(P_ATM, gt=5e4, le=1.2e5,
+                         description="Atmospheric reference of the gauge pressures [Pa]")
+
+
+class Fluid(FluidCompliance):
+    """A complete fluid description (density, viscosity, compressibility, vapour pressure)."""
+
+    rho: float = rho_field()
+    nu: float = nu_field()
+
+    def args_for(self, component_class) -> dict:
+        """The fields of this fluid that ``component_class`` takes, as keyword arguments."""
+        fields = component_class.Params.model_fields
+        return {k: getattr(self, k) for k in type(self).model_fields if k in fields}
+
+    @property
+    def speed_of_sound(self) -> float:
+        """Wave speed ``sqrt(beta / rho)`` of the pure oil [m/s]."""
+        return (self.beta / self.rho) ** 0.5
+
+
+MINERAL_OIL = Fluid()
+
+
+def _is_expr(x):
+    return isinstance(x, E.Expr)
+
+
+def effective_bulk_modulus(p, fp: FluidCompliance):
+    """Effective bulk modulus at gauge pressure ``p`` (constant when ``air == 0``)."""
+    if fp.air == 0.0:
+        return E.const(fp.beta) if _is_expr(p) else fp.beta
+    p_air = smooth_max(p + fp.p_atm, fp.p_min_abs, 0.1 * fp.p_min_abs)
+    ratio = fp.air / (1.0 - fp.air)
+    inv = 1.0 / fp.beta + ratio * (fp.p_atm / p_air) ** (1.0 / fp.kappa) / (fp.kappa * p_air)
+    return 1.0 / inv
+
+
+CAVITATION_ONSET = 10.0  # the cavitation term vanishes above p_vap + CAVITATION_ONSET * dp_cav
+
+
+def cavitation_compliance(p, fp: FluidCompliance):
+    """``1/beta * max(dp_cav/s - 1/10, 0)^3``: compliance per volume added near ``p_vap``."""
+    floor = 1e-4 * fp.dp_cav
+    depth = p + fp.p_atm - fp.p_vap
+    s = smooth_max(depth, floor, floor)
+    r = fp.dp_cav / s - 1.0 / CAVITATION_ONSET
+    near = depth < CAVITATION_ONSET * fp.dp_cav
+    if _is_expr(near):
+        return E.where(near, r * r * r / fp.beta, 0.0)
+    return r * r * r / fp.beta if near else 0.0
+
+
+def compliance(p, fp: FluidCompliance):
+    """``1/beta_e(p)`` plus the cavitation term [1/Pa]: ``V * compliance * der(p) = q``."""
+    return 1.0 / effective_bulk_modulus(p, fp) + cavitation_compliance(p, fp)
+
+
+class CavitationWarning(PlausibilityWarning):
+    """A chamber reached the vapour pressure: the oil cavitates there."""
+
+
+def cavitation_warning(v, p, fp: FluidCompliance, what: str, mode: str = "cavitated"):
+    """Declare the event that warns once when gauge pressure ``p`` nears the vapour pressure.
+
+    The warning names the chamber (``v``'s component path); it fires when the absolute pressure
+    falls to ``p_vap + dp_cav``. Components using it declare the discrete mode ``mode``.
+    """
+    path = v._prefix
+    done = v.mode(mode)
+    condition = E.where(done < 0.5, p + fp.p_atm - fp.p_vap - fp.dp_cav, 1.0)
+
+    def action(modes):
+        modes[mode] = 1.0
+        warnings.warn(CavitationWarning(
+            f"{path}: the pressure in {what} falls to the vapour pressure ({fp.p_vap:g} Pa "
+            f"absolute): the oil cavitates there. Check the flow out of it (a load running "
+            f"ahead of its supply, a motor overrunning) or add a make-up (anti-cavitation) "
+            f"check valve from tank."), stacklevel=2)
+    v.event("cavitation", condition, direction=-1, action=action)

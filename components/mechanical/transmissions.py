@@ -1,0 +1,72 @@
+"""Transmissions between translation and rotation (rack and pinion) and between two
+translations (lever).
+
+``RackPinion``: ports ``flange`` (the rack, x [m], f [N]) and ``shaft`` (the pinion, phi [rad],
+tau [N m]), pinion radius ``r``. Ideal (``k`` None), it is the holonomic constraint and the
+power balance::
+
+    flange.x = r * shaft.phi,     shaft.tau = -r * flange.f        (f v + tau w = 0)
+
+With a mesh stiffness ``k`` (and damping ``d``) the teeth deflect instead, so both sides may
+carry inertia (an ideal constraint between two inertias is a DAE of index two)::
+
+    F = k (flange.x - r shaft.phi) + d (der(flange.x) - r der(shaft.phi))
+    flange.f = F,   shaft.tau = -r F
+
+``Lever``: ports ``a`` and ``b`` (translational), ratio ``i = x_b / x_a``::
+
+    b.x = i * a.x,   a.f = -i * b.f          (ideal)
+    F = k (b.x - i a.x) + d der(b.x - i a.x),   b.f = F,   a.f = -i F   (compliant)
+"""
+
+from __future__ import annotations
+
+from pydantic import Field
+
+from pvgraph.component import Component, Mechanical, Params, der
+
+from .rotational import Rotational
+
+__all__ = ["RackPinion", "Lever"]
+
+
+class RackPinionParams(Params):
+    r: float = Field(..., gt=0.0, le=10.0, description="Pinion pitch radius [m]")
+    k: float | None = Field(None, gt=0.0, le=1e12,
+                            description="Mesh stiffness [N/m]; None: ideal, rigid teeth")
+    d: float = Field(0.0, ge=0.0, le=1e9, description="Mesh damping [N s/m] (with k)")
+
+
+class RackPinion(Component):
+    """Rack and pinion: ``x = r phi`` and ``tau = -r f`` (ideal, or through a mesh stiffness)."""
+
+    Params = RackPinionParams
+    ports = {"flange": Mechanical("the rack"), "shaft": Rotational("the pinion")}
+
+    def equations(self, v, p):
+        if p.k is None:
+            return [v.flange.x - p.r * v.shaft.phi, v.shaft.tau + p.r * v.flange.f]
+        gap = v.flange.x - p.r * v.shaft.phi
+        F = v.observe("F", p.k * gap + p.d * der(gap), "N", "mesh force")
+        return [v.flange.f - F, v.shaft.tau + p.r * F]
+
+
+class LeverParams(Params):
+    i: float = Field(..., ge=-100.0, le=100.0, description="Ratio x_b / x_a [-]")
+    k: float | None = Field(None, gt=0.0, le=1e12,
+                            description="Stiffness at b [N/m]; None: ideal, rigid lever")
+    d: float = Field(0.0, ge=0.0, le=1e9, description="Damping at b [N s/m] (with k)")
+
+
+class Lever(Component):
+    """Lever between two translational flanges: ``b.x = i a.x``, ``a.f = -i b.f``."""
+
+    Params = LeverParams
+    ports = {"a": Mechanical("input end"), "b": Mechanical("output end")}
+
+    def equations(self, v, p):
+        if p.k is None:
+            return [v.b.x - p.i * v.a.x, v.a.f + p.i * v.b.f]
+        gap = v.b.x - p.i * v.a.x
+        F = v.observe("F", p.k * gap + p.d * der(gap), "N", "force at b")
+        return [v.b.f - F, v.a.f + p.i * F]

@@ -1,0 +1,145 @@
+"""Gas accumulator (isotherm, adiabat, bottoming) and lines (pi-line friction, wave speed)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from components.hydraulic import (FlowSource, GasAccumulator, PiLine, Plug, PressureSource, Tank,
+                                  VolumeNode)
+from components.hydraulic.lines import line_friction, segmented_line
+from hydraulic_helpers import jacobian_fd_error, requires_solver
+from pvgraph.circuit import Circuit
+from pvgraph.errors import ParameterError
+from pvgraph.simulate import simulate
+from pvgraph.units import bar, litre, lpm
+
+P_ATM, BETA, RHO, NU = 101325.0, 7e8, 870.0, 3.2e-5
+
+
+def _fill(acc, Q):
+    c = Circuit("acc")
+    c.add("pump", FlowSource(Q=Q))
+    c.add("dut", acc)
+    c.connect("pump.port", "dut.port")
+    return c
+
+
+@requires_solver
+@pytest.mark.parametrize("n", [1.0, 1.4])
+def test_filling_follows_the_polytrope(n):
+    """p_abs (V0 - V_oil)^n = p_pre_abs V0^n with V_oil = V_oil(0) + Q t."""
+    V0, p_pre, p0, Q = litre(4), bar(50), bar(60), lpm(12)
+    acc = GasAccumulator(V0=V0, p_pre=p_pre, n=n, p0=p0, V_dead=1e-10)   # gas only
+    V_start = V0 * (1 - ((p_pre + P_ATM) / (p0 + P_ATM)) ** (1 / n))
+    t = np.array([0.0, 2.0, 5.0, 8.0])
+    sol = simulate(_fill(acc, Q), 8.0, rtol=1e-9, atol=1e-10, t_eval=t)
+    V_oil = V_start + Q * t
+    p_exact = (p_pre + P_ATM) * (V0 / (V0 - V_oil)) ** n - P_ATM
+    np.testing.assert_allclose(sol["dut.port.p"], p_exact, rtol=1e-6)
+    np.testing.assert_allclose(sol["dut.V_oil"], V_oil, rtol=1e-8)
+    np.testing.assert_allclose(sol["dut.p_gas"], p_exact, rtol=1e-6)
+    # stored energy: the work done on the gas, the integral of p_abs dV_oil from precharge
+    p_abs_end, V_gas_end = p_exact[-1] + P_ATM, V0 - V_oil[-1]
+    if n == 1.0:
+        E_exact = (p_pre + P_ATM) * V0 * math.log(V0 / V_gas_end)
+    else:
+        E_exact = (p_abs_end * V_gas_end - (p_pre + P_ATM) * V0) / (n - 1)
+    assert sol.final("dut.E_gas") == pytest.approx(E_exact, rel=1e-6)
+
+
+@requires_solver
+def test_adiabatic_charge_is_stiffer_than_isothermal():
+    V0, p_pre, Q = litre(4), bar(50), lpm(12)
+    finals = [simulate(_fill(GasAccumulator(V0=V0, p_pre=p_pre, n=n, p0=bar(55)), Q), 5.0,
+                       rtol=1e-8).final("dut.port.p") for n in (1.0, 1.4)]
+    assert finals[1] > finals[0] > bar(55)
+
+
+@requires_solver
+def test_bottomed_accumulator_is_as_stiff_as_its_dead_volume():
+    V0, p_pre, V_dead, Q = litre(1), bar(50), 2e-6, 1e-7
+    acc = GasAccumulator(V0=V0, p_pre=p_pre, V_dead=V_dead, p0=bar(40))
+    sol = simulate(_fill(acc, -Q), 0.01, rtol=1e-9, t_eval=[0.0, 0.01])
+    assert sol.final("dut.port.p") == pytest.approx(bar(40) - BETA * Q * 0.01 / V_dead, rel=1e-6)
+
+
+def test_accumulator_jacobian_and_parameters():
+    system = _fill(GasAccumulator(V0=litre(2), p_pre=bar(30), p0=bar(80)), lpm(5)).compile()
+    assert jacobian_fd_error(system) < 1e-6
+    with pytest.raises(ParameterError, match="p_pre"):
+        GasAccumulator(V0=litre(1), p_pre=0.0)
+
+
+LINE = dict(l=5.0, d=0.012)
+
+
+def test_friction_is_hagen_poiseuille_when_laminar_and_blasius_when_turbulent():
+    p = PiLine(**LINE).params
+    A = math.pi * 0.012 ** 2 / 4
+    w_lam = 100 * NU / 0.012                 # Re = 100
+    dp_hp = 128 * RHO * NU * 5.0 * (w_lam * A) / (math.pi * 0.012 ** 4)
+    assert line_friction(w_lam * A, p) == pytest.approx(dp_hp, rel=1e-3)
+    w_turb = 10000 * NU / 0.012              # Re = 1e4
+    f = 0.316 * 1e4 ** -0.25
+    assert line_friction(w_turb * A, p) == pytest.approx(f * 5.0 / 0.012 * RHO * w_turb ** 2 / 2,
+                                                         rel=1e-3)
+    assert line_friction(-w_turb * A, p) == pytest.approx(-line_friction(w_turb * A, p))
+
+
+@requires_solver
+def test_steady_flow_through_a_line_drops_the_friction_pressure():
+    Q = lpm(40)
+    c = Circuit("pipe")
+    c.add("pump", FlowSource(Q=Q))
+    c.add("dut", PiLine(**LINE, start={"q": Q}))   # already flowing: no start-up water hammer
+    c.add("tank", Tank())
+    c.connect("pump.port", "dut.a")
+    c.connect("dut.b", "tank.port")
+    sol = simulate(c, 3.0, rtol=1e-8)    # the L-C ringing decays as exp(-R t / 2L), 8/s
+    w = Q / (math.pi * 0.012 ** 2 / 4)
+    Re = w * 0.012 / NU
+    assert Re > 1189
+    dp = 0.316 * Re ** -0.25 * 5.0 / 0.012 * RHO * w ** 2 / 2
+    assert sol.final("dut.a.p") == pytest.approx(dp, rel=1e-3)
+    assert sol.final("dut.q") == pytest.approx(Q, rel=1e-8)
+
+
+@requires_solver
+@pytest.mark.slow
+def test_segmented_line_wave_time_and_quarter_wave_resonance():
+    """Closed at b, stepped to p_s at a: the wave reaches b after l/c, period 4 l / c."""
+    n, l, p_0, step = 40, 20.0, bar(50), bar(10)
+    c_wave = math.sqrt(BETA / RHO)
+    c = Circuit("wave")
+    c.add("src", PressureSource(p0=p_0 + step))
+    c.add("line", segmented_line(n, l=l, d=0.02, friction="laminar", p0=p_0))
+    c.add("plug", Plug())
+    c.connect("src.port", "line.a")
+    c.connect("line.b", "plug.port")
+    T = 4 * l / c_wave
+    t = np.linspace(0.0, 3 * T, 3001)
+    sol = simulate(c, 3 * T, rtol=1e-6, t_eval=t)
+    p_b = sol[f"line.s{n - 1}.b.p"] - p_0
+    t_arrive = t[np.argmax(p_b > 0.5 * step)]
+    assert t_arrive == pytest.approx(l / c_wave, rel=0.05)
+    # the reflection doubles the step (a lumped chain overshoots a sharp front: Gibbs)
+    assert 1.8 * step < p_b.max() < 2.6 * step
+    up = np.flatnonzero((p_b[:-1] < step) & (p_b[1:] >= step))
+    period = np.mean(np.diff(t[up]))
+    assert period == pytest.approx(4 * l / c_wave, rel=0.02)
+
+
+def test_line_jacobian_and_hose_softer_than_pipe():
+    c = Circuit("j")
+    c.add("src", PressureSource(p0=bar(30)))
+    c.add("line", segmented_line(3, l=3.0, d=0.01, p0=bar(20)))
+    c.add("vol", VolumeNode(V=1e-4, p0=bar(10)))
+    c.connect("src.port", "line.a")
+    c.connect("line.b", "vol.port")
+    assert jacobian_fd_error(c.compile()) < 1e-5
+    hose = PiLine(**LINE, beta_wall=3e8).params
+    assert hose.wave_speed == pytest.approx(math.sqrt(1 / (1 / BETA + 1 / 3e8) / RHO))
+    assert hose.wave_speed < PiLine(**LINE).params.wave_speed
+    with pytest.raises(ParameterError, match="n must be"):
+        segmented_line(0, l=1.0, d=0.01)

@@ -1,0 +1,87 @@
+"""Shuttle valve and 2-way pressure-compensated flow control valve."""
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from components.hydraulic import FlowControlValve, PressureSource, ShuttleValve, Tank
+from hydraulic_helpers import fixed_observed, jacobian_fd_error, value
+from pvgraph.laws import orifice_flow
+from pvgraph.testing import Flow, Pressure, bench_circuit
+from pvgraph.units import bar, lpm, mm2
+
+RHO, CD = 870.0, 0.6
+
+
+def _solve_static(circuit_system, guess):
+    """Newton on the algebraic bench (no states): returns the solved y."""
+    from scipy.optimize import fsolve
+    s = circuit_system
+    y = fsolve(lambda y: s.residual(0.0, y, np.zeros(s.n)), guess, xtol=1e-13)
+    assert np.max(np.abs(s.residual(0.0, y, np.zeros(s.n)))) < 1e-12
+    return y
+
+
+def test_shuttle_passes_the_higher_inlet():
+    A = mm2(2)
+    # out held at 50 bar: a at 60 bar feeds it, b at 40 bar is sealed (leak only, reverse)
+    s, q = fixed_observed(ShuttleValve(A=A), ["s", "q"], a=Pressure(bar(60)),
+                          b=Pressure(bar(40)), out=Pressure(bar(50)))
+    assert s == 1.0
+    assert q == pytest.approx(orifice_flow(CD, A + 1e-12, bar(10), RHO, 1e3)
+                                            + orifice_flow(CD, 1e-12, -bar(10), RHO, 1e3),
+                                            rel=1e-12)
+
+
+def test_shuttle_output_follows_the_max_of_its_inputs_into_a_small_drain():
+    A, drain = mm2(2), lpm(0.5)
+    for pa, pb in ((bar(80), bar(30)), (bar(30), bar(80)), (bar(50), bar(50) + 1e3)):
+        system = bench_circuit(ShuttleValve(A=A), a=Pressure(pa), b=Pressure(pb),
+                               out=Flow(-drain)).compile()
+        guess = np.array(system.y0, dtype=float)
+        guess[system.index["dut.out.p"]] = max(pa, pb)
+        y = _solve_static(system, guess)
+        p_out = value(system, y, "dut.out.p")
+        hi = max(pa, pb)
+        if abs(pa - pb) > bar(1):
+            dp = (drain / (CD * (A + 1e-12))) ** 2 * RHO / 2   # turbulent, >> dp_t
+            assert hi - p_out == pytest.approx(dp, rel=2e-3)
+        else:
+            assert hi - bar(1) < p_out < hi
+
+
+def test_shuttle_jacobian():
+    system = bench_circuit(ShuttleValve(A=mm2(2)), a=Pressure(bar(50)), b=Pressure(bar(50) + 2e3),
+                           out=Flow(-lpm(0.5))).compile()
+    assert jacobian_fd_error(system) < 1e-6
+
+
+FCV = dict(A_meter=mm2(5), A_comp=mm2(20), dp_c=bar(8))
+
+
+def _fcv_flow(p_in, p_out):
+    (q,) = fixed_observed(FlowControlValve(**FCV), ["q"], A=Pressure(p_in), B=Pressure(p_out))
+    return q
+
+
+def test_flow_control_holds_its_flow_against_supply_and_load_pressure():
+    Q_set = CD * FCV["A_meter"] * np.sqrt(2 * bar(8) / RHO)
+    for p_in, p_out in ((bar(50), 0.0), (bar(200), 0.0), (bar(200), bar(150))):
+        assert _fcv_flow(p_in, p_out) == pytest.approx(Q_set, rel=1e-3)
+
+
+def test_flow_control_below_its_setting_is_two_orifices_in_series_and_free_in_reverse():
+    A_eq = 1.0 / np.sqrt(1 / FCV["A_comp"] ** 2 + 1 / FCV["A_meter"] ** 2)
+    q_series = orifice_flow(CD, A_eq, bar(1), RHO, 1e3)
+    assert _fcv_flow(bar(1), 0.0) == pytest.approx(q_series, rel=2e-3)
+    assert _fcv_flow(0.0, bar(30)) == pytest.approx(orifice_flow(CD, A_eq, -bar(30), RHO, 1e3),
+                                                    rel=1e-12)
+    dps = np.linspace(-bar(1), bar(30), 200)
+    qs = [_fcv_flow(d, 0.0) if d > 0 else _fcv_flow(0.0, -d) for d in dps]
+    assert np.all(np.diff(qs) > 0.0)           # monotone, continuous through dp = 0
+
+
+def test_flow_control_jacobian():
+    system = bench_circuit(FlowControlValve(**FCV), A=Pressure(bar(2)),   # at the knee
+                           B=Flow(-lpm(1))).compile()
+    assert jacobian_fd_error(system) < 1e-6

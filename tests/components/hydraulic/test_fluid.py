@@ -1,0 +1,85 @@
+"""Fluid description and the cavitation limit of volumes and chambers."""
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+from scipy.optimize import brentq
+
+from components.hydraulic import CheckValve, FlowSource, Orifice, VolumeNode
+from components.hydraulic.fluid import (MINERAL_OIL, P_ATM, CavitationWarning, Fluid,
+                                        cavitation_compliance)
+from hydraulic_helpers import jacobian_fd_error, requires_solver
+from pvgraph.circuit import Circuit
+from pvgraph.errors import ParameterError
+from pvgraph.simulate import simulate
+
+V, BETA, P_VAP, DP_CAV = 1e-4, 7e8, 2e3, 3e3
+
+
+def test_one_default_density_and_fluid_applies_to_any_part():
+    assert Orifice(A=1e-6).params.rho == CheckValve(A=1e-6).params.rho == MINERAL_OIL.rho == 870.0
+    oil = Fluid(rho=900.0, beta=1.5e9, air=0.01)
+    assert oil.args_for(Orifice) == {"rho": 900.0, "nu": oil.nu}
+    assert VolumeNode(V=1e-3, **oil.args_for(VolumeNode)).params.beta == 1.5e9
+    assert oil.speed_of_sound == pytest.approx(np.sqrt(1.5e9 / 900.0))
+    with pytest.raises(ParameterError, match="p_vap"):
+        VolumeNode(V=1e-3, p_vap=-1.0)
+
+
+def _compliance_law(p):
+    """The documented cavitation term, written out independently: zero above p_vap + 10 dp_cav."""
+    s = p + P_ATM - P_VAP
+    return max(DP_CAV / s - 0.1, 0.0) ** 3 / BETA if s > 0 else np.inf
+
+
+def test_cavitation_term_is_zero_in_normal_operation_and_unbounded_at_the_vapour_pressure():
+    fp = MINERAL_OIL
+    assert cavitation_compliance(0.0, fp) == 0.0
+    assert cavitation_compliance(-P_ATM + P_VAP + 10 * DP_CAV + 1.0, fp) == 0.0
+    for s in (3e4 * 0.5, 3e3, 300.0):  # the floor (0.3 Pa) rounds s by < 1e-5 here
+        p = s - P_ATM + P_VAP
+        assert cavitation_compliance(p, fp) == pytest.approx(_compliance_law(p), rel=2e-4)
+    assert cavitation_compliance(-P_ATM + P_VAP + 1.0, fp) * BETA > 1e9
+
+
+@requires_solver
+def test_volume_drained_below_vacuum_stops_at_the_vapour_pressure_and_warns():
+    Q, p0, T = 1e-6, 5e5, 1.6    # draws 1.6e-6 m^3 = 1.6 % of the volume
+    c = Circuit("drain")
+    c.add("vol", VolumeNode(V=V, p0=p0))
+    c.add("sink", FlowSource(Q=-Q))
+    c.connect("vol.port", "sink.port")
+    t_linear = 0.9 * (p0 + P_ATM - 0.32e5) * V / (BETA * Q)     # still above the onset
+    with pytest.warns(CavitationWarning, match="vol"):
+        sol = simulate(c, T, rtol=1e-8, atol=1e-10, t_eval=[0.0, t_linear, T])
+    assert sol["vol.port.p"][1] == pytest.approx(p0 - BETA * Q * t_linear / V, rel=1e-8)
+    p_end = sol.final("vol.port.p")
+    # the drawn volume equals the integral of V * compliance from p_end to p0
+    drawn = quad(lambda p: V * (1.0 / BETA + _compliance_law(p)), p_end, p0,
+                 points=[-P_ATM + P_VAP + 10 * DP_CAV], limit=200)[0]
+    assert drawn == pytest.approx(Q * T, rel=1e-3)
+    assert P_VAP < p_end + P_ATM < P_VAP + 100.0   # about 40 Pa above, as documented
+
+
+@requires_solver
+def test_no_warning_while_the_pressure_stays_above_the_limit():
+    c = Circuit("fill")
+    c.add("vol", VolumeNode(V=V))
+    c.add("src", FlowSource(Q=1e-6))
+    c.connect("vol.port", "src.port")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", CavitationWarning)
+        sol = simulate(c, 0.01, rtol=1e-8)
+    assert sol.final("vol.port.p") == pytest.approx(BETA * 1e-6 * 0.01 / V, rel=1e-8)
+
+
+def test_jacobian_near_the_vapour_pressure():
+    c = Circuit("j")
+    c.add("vol", VolumeNode(V=V, p0=-P_ATM + P_VAP + 500.0))
+    c.add("orf", Orifice(A=1e-6))
+    c.add("tank", VolumeNode(V=V, p0=1e5))
+    c.connect("vol.port", "orf.a")
+    c.connect("orf.b", "tank.port")
+    assert jacobian_fd_error(c.compile()) < 1e-5

@@ -1,0 +1,165 @@
+"""Rotational parts, the generic Mass, rack and pinion, lever and the sensors."""
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from components.hydraulic import FlowSensor, Orifice, PressureSensor, PressureSource, Tank
+from components.mechanical import (AngleSensor, ForceSensor, Inertia, Lever, Mass, PositionSensor,
+                                   RackPinion, RotationalFixed, ShaftSpringDamper, SpeedSensor,
+                                   SpeedSource, TorqueInput, TorqueSensor, TorqueSource,
+                                   VelocitySensor, LinearSpring, Fixed, ForceInput)
+from components.signal import Constant
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "hydraulic"))
+from hydraulic_helpers import jacobian_fd_error, requires_solver, value  # noqa: E402
+from pvgraph.circuit import Circuit
+from pvgraph.errors import ParameterError
+from pvgraph.simulate import simulate
+from pvgraph.units import bar, mm2
+
+
+@requires_solver
+def test_torque_accelerates_an_inertia_and_the_sensors_read_it():
+    J, T = 0.2, 3.0
+    c = Circuit("spin")
+    c.add("load", Inertia(J=J))
+    c.add("drive", TorqueSource(T=T))
+    c.add("w", SpeedSensor())
+    c.add("phi", AngleSensor())
+    c.connect("load.shaft", "drive.shaft", "w.shaft", "phi.shaft")
+    t = np.array([0.5, 1.0, 2.0])
+    sol = simulate(c, 2.0, rtol=1e-9, t_eval=t)
+    np.testing.assert_allclose(sol["w.y"], T / J * t, rtol=1e-8)
+    np.testing.assert_allclose(sol["phi.y"], 0.5 * T / J * t ** 2, rtol=1e-8)
+    np.testing.assert_allclose(sol["load.E_kin"], T * sol["phi.y"], rtol=1e-8)   # work = T phi
+
+
+@requires_solver
+def test_two_inertias_on_an_elastic_shaft_oscillate_at_the_analytic_frequency():
+    J1, J2, k = 0.1, 0.3, 400.0
+    c = Circuit("shaft")
+    c.add("j1", Inertia(J=J1, w0=10.0))
+    c.add("j2", Inertia(J=J2))
+    c.add("s", ShaftSpringDamper(k=k))
+    c.connect("j1.shaft", "s.a")
+    c.connect("s.b", "j2.shaft")
+    wn = math.sqrt(k * (J1 + J2) / (J1 * J2))
+    t = np.linspace(0, 1.0, 201)
+    sol = simulate(c, 1.0, rtol=1e-10, atol=1e-10, t_eval=t)
+    w_cm = (J1 * 10.0) / (J1 + J2)             # momentum conserved
+    np.testing.assert_allclose(J1 * sol["j1.w"] + J2 * sol["j2.w"], J1 * 10.0, rtol=1e-7)
+    rel = sol["j1.w"] - w_cm
+    np.testing.assert_allclose(rel, (10.0 - w_cm) * np.cos(wn * t), atol=1e-5 * 10)
+
+
+@requires_solver
+def test_torque_sensor_between_source_and_load():
+    c = Circuit("ts")
+    c.add("src", TorqueSource(T=5.0))
+    c.add("sensor", TorqueSensor())
+    c.add("load", Inertia(J=1.0, b=0.25))
+    c.connect("src.shaft", "sensor.a")
+    c.connect("sensor.b", "load.shaft")
+    sol = simulate(c, 40.0, rtol=1e-9)
+    np.testing.assert_allclose(sol["sensor.y"], 5.0, rtol=1e-12)       # all of T passes
+    assert sol.final("load.w") == pytest.approx(5.0 / 0.25 * (1 - math.exp(-10.0)), rel=1e-6)
+
+
+@requires_solver
+def test_mass_under_gravity_falls_freely_and_hangs_on_a_spring():
+    g = -9.81
+    c = Circuit("fall")
+    c.add("m", Mass(m=2.0, g=g, x0=1.0))
+    c.add("v", VelocitySensor())
+    c.connect("m.flange", "v.flange")
+    t = np.array([0.1, 0.3])
+    sol = simulate(c, 0.3, rtol=1e-10, t_eval=t)
+    np.testing.assert_allclose(sol["m.flange.x"], 1.0 + 0.5 * g * t ** 2, rtol=1e-9)
+    np.testing.assert_allclose(sol["v.y"], g * t, rtol=1e-9)
+    np.testing.assert_allclose(sol["m.E_kin"] + sol["m.E_pot"], 0.0, atol=1e-9)
+
+
+@requires_solver
+def test_rack_and_pinion_lifts_a_mass():
+    """Ideal: torque T on the pinion, mass m on the rack: m a = T / r - m g."""
+    r, m, T = 0.05, 10.0, 7.0
+    c = Circuit("rack")
+    c.add("pinion", Inertia(J=0.01))     # the pinion's inertia: the rack has none of its own
+    c.add("drive", TorqueSource(T=T))
+    c.add("rp", RackPinion(r=r))
+    c.add("load", ForceSensor())
+    c.add("grav", ForceInput())
+    c.add("weight", Constant(k=-m * 9.81))
+    c.add("rack_pos", PositionSensor())
+    c.connect("pinion.shaft", "drive.shaft", "rp.shaft")
+    c.connect("rp.flange", "rack_pos.flange", "load.a")
+    c.connect("load.b", "grav.flange")
+    c.connect("weight.y", "grav.u")
+    sol = simulate(c, 0.5, rtol=1e-10, t_eval=[0.5])
+    alpha = (T - r * m * 9.81) / 0.01        # the pinion carries the weight through r
+    assert sol.final("pinion.w") == pytest.approx(alpha * 0.5, rel=1e-8)
+    assert sol.final("rack_pos.y") == pytest.approx(r * 0.5 * alpha * 0.25, rel=1e-8)
+    assert sol.final("load.y") == pytest.approx(m * 9.81, rel=1e-9)   # the rack holds it up
+
+
+@requires_solver
+def test_compliant_rack_between_two_inertias_and_lever_ratio():
+    c = Circuit("mesh")
+    c.add("pinion", Inertia(J=0.01))
+    c.add("drive", TorqueSource(T=1.0))
+    c.add("rp", RackPinion(r=0.05, k=1e6, d=50.0))
+    c.add("rack", Mass(m=4.0))
+    c.connect("pinion.shaft", "drive.shaft", "rp.shaft")
+    c.connect("rp.flange", "rack.flange")
+    sol = simulate(c, 0.2, rtol=1e-9)
+    m_eq = 0.01 / 0.05 ** 2 + 4.0              # inertia seen at the rack
+    assert sol.final("rack.v") == pytest.approx(1.0 / 0.05 / m_eq * 0.2, rel=1e-3)
+    # lever: a spring of rate k at b seen at a is i^2 k
+    c = Circuit("lever")
+    c.add("push", ForceInput())
+    c.add("f", Constant(k=100.0))
+    c.add("lv", Lever(i=2.0))
+    c.add("spring", LinearSpring(k=1e4))
+    c.add("m", Mass(m=1.0, b=200.0))
+    c.connect("f.y", "push.u")
+    c.connect("push.flange", "lv.a", "m.flange")
+    c.connect("lv.b", "spring.flange")
+    sol = simulate(c, 2.0, rtol=1e-9)
+    assert sol.final("m.flange.x") == pytest.approx(100.0 / (4 * 1e4), rel=1e-6)
+
+
+def test_hydraulic_sensors_and_jacobians():
+    c = Circuit("hs")
+    c.add("src", PressureSource(p0=bar(50)))
+    c.add("fs", FlowSensor())
+    c.add("orf", Orifice(A=mm2(2)))
+    c.add("ps", PressureSensor())
+    c.add("tank", Tank())
+    c.connect("src.port", "fs.a", "ps.port")
+    c.connect("fs.b", "orf.a")
+    c.connect("orf.b", "tank.port")
+    system = c.compile()
+    from pvgraph.laws import orifice_flow
+    from scipy.optimize import fsolve
+    y = np.array(system.y0, dtype=float)
+    if system.n:
+        y = fsolve(lambda y: system.residual(0.0, y, np.zeros(system.n)), y + 1e-4, xtol=1e-14)
+    assert value(system, y, "fs.y") == pytest.approx(
+        orifice_flow(0.6, mm2(2), bar(50), 870.0, Orifice(A=mm2(2)).params.transition()),
+        rel=1e-9)
+    assert value(system, y, "ps.y") == bar(50)
+    c = Circuit("jr")
+    c.add("j1", Inertia(J=0.1, w0=3.0))
+    c.add("s", ShaftSpringDamper(k=100.0, d=0.3))
+    c.add("j2", Inertia(J=0.2))
+    c.add("tq", TorqueInput())
+    c.add("u", Constant(k=2.0))
+    c.connect("j1.shaft", "s.a", "tq.shaft")
+    c.connect("s.b", "j2.shaft")
+    c.connect("u.y", "tq.u")
+    assert jacobian_fd_error(c.compile()) < 1e-6
+    with pytest.raises(ParameterError, match="J"):
+        Inertia(J=0.0)
