@@ -150,11 +150,15 @@ def cavitation_warning(v, p, fp: FluidCompliance, what: str, mode: str = "cavita
     done = v.mode(mode)
     condition = E.where(done < 0.5, p + fp.p_atm - fp.p_vap - fp.dp_cav, 1.0)
 
+    # p_vap is a runtime parameter symbol while tracing: name it rather than freeze a number
+    vapour = (f"{fp.p_vap:g} Pa absolute" if isinstance(fp.p_vap, (int, float))
+              else "the fluid's p_vap")
+
     def action(modes):
         modes[mode] = 1.0
         warnings.warn(CavitationWarning(
-            f"{path}: the pressure in {what} falls to the vapour pressure ({fp.p_vap:g} Pa "
-            f"absolute): the oil cavitates there. Check the flow out of it (a load running "
+            f"{path}: the pressure in {what} falls to the vapour pressure ({vapour}): "
+            f"the oil cavitates there. Check the flow out of it (a load running "
             f"ahead of its supply, a motor overrunning) or add a make-up (anti-cavitation) "
             f"check valve from tank."), stacklevel=2)
     v.event("cavitation", condition, direction=-1, action=action)
