@@ -285,7 +285,8 @@ def to_unit(value, unit: str, what: str = "value") -> float:
     elif isinstance(value, str):
         m = _NUMBER.match(value)
         if not m:
-            raise UnitError(f"{what} = {value!r}: write a number with a unit, e.g. '150 bar'")
+            raise UnitError(f"{what} = {value!r}: {value!r} is not a number (write a number, "
+                            f"or one with a unit, e.g. '150 bar')")
         number, text = float(m.group(1)), m.group(2)
         if not text:
             return number
@@ -299,7 +300,7 @@ def to_unit(value, unit: str, what: str = "value") -> float:
     if got != dim:
         raise UnitError(f"{what} = {shown!r} is {kind(got)}, but {what} is {kind(dim)} "
                         f"[{unit}]")
-    return _snap(si / factor)
+    return si / factor
 
 
 def declared_unit(description: str | None) -> str | None:

@@ -4,10 +4,7 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
-from circuits.pvg32.modules import build_pvb, opening_areas
-from circuits.pvg32.parameters import report_tuned
-from pvgraph.plotting import (draw_circuit, plot_bode, plot_opening_areas, plot_solution,
-                              plot_step_response)
+from pvgraph.plotting import draw_circuit, plot_bode, plot_solution, plot_step_response
 from pvgraph.simulate import simulate
 from components import FlowSource, Orifice, Tank, VolumeNode
 from pvgraph import Circuit
@@ -44,20 +41,6 @@ def test_misspelled_variable_fails_before_writing(tmp_path):
     with pytest.raises(KeyError, match="node.port.p"):
         plot_solution(sol, ["node.port.pp"], tmp_path / "bad.png")
     assert not (tmp_path / "bad.png").exists()
-
-
-def test_opening_areas_are_the_ones_the_model_uses(tmp_path):
-    p = report_tuned()
-    areas = opening_areas(p)
-    assert set(areas) == {"A1", "A2", "A3", "A_H"}
-    pvb = build_pvb(p)
-    pa = pvb["PA"].params                                  # P -> A edge, x > 0 half of A_H
-    a_h = areas["A_H"]
-    assert np.allclose(pa.A_table, np.where(a_h.x > 0, a_h.area, 0.0))
-    # A2 = pi D x_k (eq. 4.38)
-    a2 = areas["A2"]
-    assert np.allclose(a2.area, np.pi * p.compensator.opening_diameter * a2.x)
-    _png(plot_opening_areas(areas.values(), tmp_path / "areas.png"))
 
 
 def test_bode_step_and_circuit_drawings(tmp_path):
