@@ -415,3 +415,39 @@ def test_pvgraph_runs_without_the_pvg32_application(rig_file, tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "standalone ok" in proc.stdout
     assert "No application has registered circuits" in proc.stderr
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_a_sweep_keeps_what_is_done_and_resume_finishes(rig_file, tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    out = tmp_path / "study"
+    args = [sys.executable, "-m", "pvgraph.cli", "sweep", f"{rig_file}:slow", "--param",
+            "slow.delay=0.4:0.5:8", "--var", "node.port.p", "--t-end", "0.2",
+            "--backend", "process", "--workers", "2", "--out", str(out)]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": os.getcwd()})
+    log = out / "cases.jsonl"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        if log.exists() and len(log.read_text().splitlines()) >= 3:   # header + 2 cases
+            break
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "cases finished and kept" in stderr and "--resume" in stderr
+    assert "Traceback" not in stderr
+    finished = len(log.read_text().splitlines()) - 1
+    data = _json(out / "sweep.json")
+    assert 2 <= data["n_finished"] == finished < 8 and data["complete"] is False
+    resumed = subprocess.run(args + ["--resume"], capture_output=True, text=True, timeout=120,
+                             env={**os.environ, "PYTHONPATH": os.getcwd()})
+    assert resumed.returncode == 0, resumed.stderr
+    data = _json(out / "sweep.json")
+    assert data["complete"] is True and data["n_ok"] == 8
+    p = [c["outputs"]["node.port.p"] for c in data["cases"]]
+    assert max(p) - min(p) < 1e-6 * max(p)           # the delay changes nothing physical

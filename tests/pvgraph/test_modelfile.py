@@ -76,7 +76,8 @@ def test_round_trip_keeps_every_float_and_the_hierarchy(fmt, tmp_path):
     assert to_dict(back) == to_dict(c)
     assert back["bench.node"]._start == {"port.p": 2e5}
     _same_system(c, back)
-    assert dumps(back, fmt) == open(path).read()
+    with open(path) as f:
+        assert dumps(back, fmt) == f.read()
 
 
 def test_the_schema_describes_the_format():

@@ -51,6 +51,7 @@ def test_bode_step_and_circuit_drawings(tmp_path):
     _png(plot_step_response([(t, 1 - np.exp(-5 * t), "first order")], tmp_path / "s.png"))
     _png(draw_circuit(_demo(), tmp_path / "c.png"))
     dot = draw_circuit(_demo(), tmp_path / "c.dot", fmt="dot")
-    text = open(dot).read()
+    with open(dot) as f:
+        text = f.read()
     assert "digraph" in text or "graph" in text
     assert "orifice" in text and "tank" in text
