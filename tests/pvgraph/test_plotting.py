@@ -55,3 +55,32 @@ def test_bode_step_and_circuit_drawings(tmp_path):
         text = f.read()
     assert "digraph" in text or "graph" in text
     assert "orifice" in text and "tank" in text
+
+
+def test_schematic_groups_sub_circuits_and_styles_domains(tmp_path):
+    from components.mechanical import Fixed, SpoolMass
+    from pvgraph.plotting import _schematic
+
+    outer = Circuit("outer")
+    inner = outer.add("bench", _demo())
+    inner.expose("P", inner["node"].port)
+    mass = outer.add("mass", SpoolMass(m=0.1))
+    wall = outer.add("wall", Fixed())
+    outer.connect(mass.flange, wall.flange)
+    nodes, edges, groups = _schematic(outer)
+    assert groups == ["", "bench"]
+    assert nodes["bench.orifice"] == ("orifice", "Orifice", "bench")
+    junctions = [n for n, v in nodes.items() if v[1] == "junction"]
+    assert len(junctions) == 1                       # pump, node and orifice meet at one node
+    assert sorted(a for a, b, d in edges if b == junctions[0]) == \
+        ["bench.node", "bench.orifice", "bench.pump"]
+    assert ("mass", "wall", "mechanical") in edges
+    assert {d for _, _, d in edges} == {"hydraulic", "mechanical"}
+    dot = draw_circuit(outer, tmp_path / "o.dot")
+    with open(dot) as f:
+        text = f.read()
+    assert 'subgraph "cluster_bench"' in text and "style=dashed" in text
+    svg = draw_circuit(outer, tmp_path / "o.svg")
+    with open(svg) as f:
+        assert "<svg" in f.read()
+    _png(draw_circuit(outer, tmp_path / "o.png"))
