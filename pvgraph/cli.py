@@ -319,7 +319,8 @@ def cmd_export(args) -> int:
     circuit = target.circuit()
     if args.out.endswith(".fmu"):
         from .fmi import export_fmu
-        path = export_fmu(circuit, args.out, outputs=args.var or list(target.variables))
+        path = export_fmu(circuit, args.out, outputs=args.var or list(target.variables),
+                          inputs=args.input or [], parameters=args.parameter or [])
     else:
         from .modelfile import save
         path = save(circuit, args.out)
@@ -713,6 +714,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_target(e)
     e.add_argument("--out", required=True, help="FILE.toml, FILE.json or FILE.fmu")
     e.add_argument("--var", action="append", help="FMU output variable (repeatable)")
+    e.add_argument("--input", action="append", metavar="PARAM",
+                   help="FMU input: a component.field parameter set between steps (repeatable)")
+    e.add_argument("--parameter", action="append", metavar="PARAM",
+                   help="FMU parameter: a component.field set before the run (repeatable)")
     e.set_defaults(func=cmd_export)
 
     w = parsers["sweep"] = sub.add_parser(
