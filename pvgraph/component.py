@@ -124,18 +124,39 @@ class Params(BaseModel):
     @field_validator("*", mode="before")
     @classmethod
     def _quantities(cls, value, info):
-        from .units import declared_unit
-        name = info.field_name
-        field_info = cls.model_fields.get(name)
-        if field_info is None or not _takes_float(field_info.annotation):
+        if type(value) is float:                     # the common case: an SI number
+            if value != 0.0 and not _PARAM_TINY <= abs(value) <= _PARAM_HUGE and \
+                    math.isfinite(value):
+                return _param_number(value, _field_unit(cls, info.field_name)[1],
+                                     info.field_name)
             return value
-        unit = declared_unit(field_info.description)
+        name = info.field_name
+        takes_float, unit = _field_unit(cls, name)
+        if not takes_float:
+            return value
         if isinstance(value, (list, tuple)):
+            if all(type(v) is float and (v == 0.0 or _PARAM_TINY <= abs(v) <= _PARAM_HUGE)
+                   for v in value):
+                return value
             return type(value)(_param_number(v, unit, f"{name}[{k}]") for k, v in enumerate(value))
         if hasattr(value, "magnitude") and not isinstance(value, (int, float)) and \
                 getattr(getattr(value, "magnitude", None), "ndim", 0) == 1:
             return tuple(_param_number(v, unit, f"{name}[{k}]") for k, v in enumerate(value))
         return _param_number(value, unit, name)
+
+
+_FIELD_UNITS: dict = {}
+
+
+def _field_unit(cls, name) -> tuple[bool, str | None]:
+    """(the field takes floats, the unit its description declares), cached per class."""
+    key = (cls, name)
+    if key not in _FIELD_UNITS:
+        from .units import declared_unit
+        info = cls.model_fields.get(name)
+        _FIELD_UNITS[key] = (info is not None and _takes_float(info.annotation),
+                             declared_unit(info.description) if info is not None else None)
+    return _FIELD_UNITS[key]
 
 
 #: [-] magnitudes outside this range overflow or underflow in the compiled equations
@@ -150,13 +171,13 @@ def _takes_float(annotation) -> bool:
 
 
 def _param_number(value, unit, name):
-    from .units import to_unit
     if isinstance(value, bool):
         raise ValueError(f"{value!r} is a bool, not a number{f' [{unit}]' if unit else ''}")
     if isinstance(value, str) or hasattr(value, "dimensionality"):
         if unit is None and not (isinstance(value, str) and _is_plain_number(value)):
             raise ValueError(f"{value!r}: {name} declares no unit to convert to; give a plain "
                              f"number")
+        from .units import to_unit
         value = to_unit(value, unit or "1", name)
     if isinstance(value, (int, float)) and math.isfinite(value) and value != 0 and \
             not _PARAM_TINY <= abs(value) <= _PARAM_HUGE:
