@@ -47,6 +47,29 @@ def run(root):
     return json.loads(out)
 
 
+def _square(x):
+    return {"y": x * x}
+
+
+def sweep_record_overhead(n=400, rep=5):
+    """Median wall time per case of a trivial serial sweep, without and with ``out=``."""
+    import tempfile
+
+    from pvgraph.analysis.sweep import grid, sweep
+    cases = grid({"x": [float(i) for i in range(n)]})
+    out = {}
+    for label in ("no files", "cases.jsonl + csv + json"):
+        times = []
+        for _ in range(rep):
+            with tempfile.TemporaryDirectory() as folder:
+                t0 = time.perf_counter()
+                sweep(_square, cases, backend="serial",
+                      out=folder if label != "no files" else None)
+                times.append((time.perf_counter() - t0) / n)
+        out[label] = statistics.median(times) * 1e6
+    return out
+
+
 def main():
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     other = sys.argv[1] if len(sys.argv) > 1 else None
@@ -60,6 +83,10 @@ def main():
         ratio = (f"  ratio {rows['this checkout'][k] / rows['other checkout'][k]:.2f}"
                  if other and k in rows["other checkout"] else "")
         print(f"{k:32s} " + " ".join(cells) + ratio)
+    sys.path.insert(0, here)
+    per_case = sweep_record_overhead()
+    print("serial sweep of a trivial run(), per case [us]: " +
+          ", ".join(f"{k} {v:.1f}" for k, v in per_case.items()))
 
 
 if __name__ == "__main__":

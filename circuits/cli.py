@@ -341,7 +341,7 @@ def linearize_rig(args) -> int:
     print(f"operating point ({op.method}, {op.iterations} iterations, scaled residual "
           f"{op.residual_norm:.2g}):")
     for n in outputs:
-        print(f"  {n:40s} {_display(op[n], units[n])}")
+        print(f"  {n:40s} {_display(op[n], units[n], args.si)}")
     stable = bool(np.all(poles.real < 0))
     print(f"{len(lm.state_names)} states, {'stable' if stable else 'NOT stable'}; "
           f"{n_shown} dominant poles:")
@@ -360,7 +360,7 @@ def linearize_rig(args) -> int:
     else:
         print("DC gain per volt of U:")
         for n, g in zip(outputs, gain):
-            print(f"  {n:40s} {_display(float(g), units[n])}/V")
+            print(f"  {n:40s} {_display(float(g), units[n], args.si)}/V")
 
     if args.json:
         data = {"U": U0, "scenario": args.scenario, "preset": args.preset, "law": args.law,
