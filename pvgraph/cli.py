@@ -284,13 +284,16 @@ def cmd_vars(args) -> int:
         kind = "state" if system.differential[k] else "algebraic"
         rows.append((n, system.units[k], kind, system.descriptions[k] if system.descriptions
                      else ""))
+    exposed = _aliases(circuit)
     for n, (coef, tgt, off) in sorted(system.aliases.items()):
+        if n in exposed:
+            continue
         kind = f"= {tgt}" if tgt is not None and coef == 1.0 and off == 0.0 else \
             (f"= {coef:g} * {tgt}" if tgt is not None else f"fixed {off:g}")
         rows.append((n, system.unit(n), kind, ""))
     for n, (unit, desc) in sorted((n, v[:2]) for n, v in system.observed.items()):
         rows.append((n, unit, "output", desc or ""))
-    for alias, real in sorted(_aliases(circuit).items()):
+    for alias, real in sorted(exposed.items()):
         rows.append((alias, system.unit(real), f"= {real} (exposed port)", ""))
     if args.grep:
         rows = [r for r in rows if args.grep.lower() in r[0].lower()]

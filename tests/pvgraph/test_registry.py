@@ -106,3 +106,16 @@ def test_the_framework_imports_no_application():
                           env={**os.environ, ENV_VAR: ""}, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "[]"
+
+
+def test_an_installed_entry_point_registers(tmp_path, monkeypatch, fresh_registry):
+    """What ``pip install`` of a package declaring the pvgraph.circuits entry point leaves."""
+    (tmp_path / "my_plugin.py").write_text(PLUGIN)
+    info = tmp_path / "my_plugin-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: my-plugin\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[pvgraph.circuits]\nmine = my_plugin:register\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv(ENV_VAR, "")
+    fresh_registry.load()
+    assert "press" in fresh_registry.circuits and "rating" in fresh_registry.commands
