@@ -22,8 +22,8 @@ import os
 import sys
 import time
 
-from pvgraph.cli import (_check_outputs, _check_param_name, _display, _frequency_response,
-                         _progress, _sweep_cases, _write_json_atomic, run_sweep)
+from pvgraph.cli import (_check_outputs, _display, _frequency_response, _progress, _sweep_cases,
+                         _write_json_atomic, run_sweep)
 from pvgraph.errors import InitializationError, ParameterError, PvgraphError, SolverError
 from pvgraph.units import to_bar, to_lpm, to_mm
 
@@ -185,7 +185,8 @@ def _format_sweep_table(result, si: bool = False) -> str:
         cells = [f"{r.params[p]:>{w}.6g}" if isinstance(r.params[p], float) else
                  f"{str(r.params[p]):>{w}s}" for p, w in zip(params, widths)]
         if r.ok:
-            cells += [f"{(float if si else RIG_OUTPUTS[n][2])(r.outputs[n]):>{w}.{'4g' if si else '3f'}}"
+            spec = "4g" if si else "3f"
+            cells += [f"{(float if si else RIG_OUTPUTS[n][2])(r.outputs[n]):>{w}.{spec}}"
                       for n, w in zip(TABLE_OUTPUTS, widths[len(params):])]
             tail = "yes" if r.outputs.get("settled") else "NO"
         else:
@@ -424,7 +425,8 @@ def _scenario_rig(name: str, preset: str = "tuned", law: str = "laminar",
 
 def _configure_validate(v) -> None:
     v.add_argument("--out", default="pvgraph-report", help="output folder (default: %(default)s)")
-    v.add_argument("--json", help="write the comparison records here (default: OUT/validation.json)")
+    v.add_argument("--json",
+                   help="write the comparison records here (default: OUT/validation.json)")
     v.add_argument("--preset", default="tuned", help="parameter preset: tuned (report table 4.14) "
                                                      "or initial (table 4.9)")
     v.add_argument("--law", default="laminar", choices=["laminar", "turbulent"],

@@ -202,7 +202,6 @@ class Circuit:
                 raise StructureError(f"{_no_reference_message(self, loose)}\n(The structural "
                                      f"check of the compiler: {exc})") from None
             raise
-        _add_port_aliases(system, self.port_aliases())
         floating = [i for i in _pressure_islands(self) if len(i["volumes"]) > 1]
         if floating:
             names = "; ".join(", ".join(sorted(i["components"])[:4]) for i in floating)
@@ -292,23 +291,6 @@ class Circuit:
 
     def __repr__(self):
         return f"<Circuit {self.path} with {len(self._components)} components>"
-
-
-def _add_port_aliases(system, aliases: dict) -> None:
-    """Make the names through exposed ports (``valve.P.p``) resolve like the inner ones."""
-    table = getattr(system, "aliases", None)
-    units = getattr(system, "_alias_units", None)
-    if not isinstance(table, dict):
-        return
-    for alias, real in aliases.items():
-        if alias in table or alias in system.index:
-            continue
-        if real in system.index:
-            table[alias] = (1.0, real, 0.0)
-        elif real in table:
-            table[alias] = table[real]
-            if isinstance(units, dict) and real in units:
-                units[alias] = units[real]
 
 
 def _leaves(circuit: Circuit) -> list:

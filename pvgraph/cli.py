@@ -114,6 +114,11 @@ def _import_file(path: str):
     sys.path.insert(0, folder)      # the file's own imports of its neighbours
     try:
         spec.loader.exec_module(module)
+    except Exception as exc:
+        del sys.modules[name]
+        where = f" (line {exc.lineno})" if isinstance(exc, SyntaxError) else ""
+        raise PvgraphError(f"{path}{where}: importing it failed: {type(exc).__name__}: "
+                           f"{exc}") from exc
     except BaseException:
         del sys.modules[name]
         raise
@@ -202,9 +207,10 @@ def _parse_options(pairs) -> dict:
 def _target(args) -> Target:
     """The target of a command, with the builder options of ``--option`` and extensions."""
     options = {}
-    for ext in registry.load().extensions.get(args.command, []):
-        if ext.options is not None:
-            options.update(ext.options(args))
+    if args.target in registry.load().circuits:     # application options for its own circuits
+        for ext in registry.extensions.get(args.command, []):
+            if ext.options is not None:
+                options.update(ext.options(args))
     generic = _parse_options(getattr(args, "option", None))
     target = load_target(args.target, {**options, **generic})
     if generic:
@@ -286,8 +292,6 @@ def cmd_vars(args) -> int:
                      else ""))
     exposed = _aliases(circuit)
     for n, (coef, tgt, off) in sorted(system.aliases.items()):
-        if n in exposed:
-            continue
         kind = f"= {tgt}" if tgt is not None and coef == 1.0 and off == 0.0 else \
             (f"= {coef:g} * {tgt}" if tgt is not None else f"fixed {off:g}")
         rows.append((n, system.unit(n), kind, ""))

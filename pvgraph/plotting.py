@@ -1,7 +1,7 @@
 """Plots with matplotlib: time series by name, Bode and step responses, circuit drawings.
 
-All functions write a PNG (or SVG, by the file's extension) and return its path; they use the non-interactive Agg backend so they
-work on machines without a screen.
+All functions write a PNG (or SVG, by the file's extension) and return its path; they use the
+non-interactive Agg backend so they work on machines without a screen.
 """
 
 from __future__ import annotations

@@ -118,7 +118,8 @@ _UNITS = {
     "ohm": (1.0, _dim(m=2, kg=1, s=-3, A=-2), True), "Ω": (1.0, _dim(m=2, kg=1, s=-3, A=-2), True),
     "H": (1.0, _dim(m=2, kg=1, s=-2, A=-2), True), "C": (1.0, _dim(s=1, A=1), False),
     "L": (1e-3, _dim(m=3), True), "l": (1e-3, _dim(m=3), True),
-    "bar": (BAR, _dim(m=-1, kg=1, s=-2), True), "psi": (6894.757293168361, _dim(m=-1, kg=1, s=-2), False),
+    "bar": (BAR, _dim(m=-1, kg=1, s=-2), True),
+    "psi": (6894.757293168361, _dim(m=-1, kg=1, s=-2), False),
     "atm": (101325.0, _dim(m=-1, kg=1, s=-2), False),
     "min": (60.0, _dim(s=1), False), "h": (3600.0, _dim(s=1), False),
     "lpm": (LPM, _dim(m=3, s=-1), False), "gpm": (3.785411784e-3 / 60.0, _dim(m=3, s=-1), False),
@@ -132,7 +133,8 @@ _PREFIXES = {"p": 1e-12, "n": 1e-9, "u": 1e-6, "µ": 1e-6, "μ": 1e-6, "m": 1e-3
 #: names of the dimensions people meet, for messages
 _KINDS = {
     _dim(m=-1, kg=1, s=-2): "a pressure", _dim(m=3): "a volume", _dim(m=3, s=-1): "a volume flow",
-    _dim(m=1): "a length", _dim(m=2): "an area", _dim(s=1): "a time", _dim(m=1, kg=1, s=-2): "a force",
+    _dim(m=1): "a length", _dim(m=2): "an area", _dim(s=1): "a time",
+    _dim(m=1, kg=1, s=-2): "a force",
     _dim(kg=1): "a mass", _dim(m=-3, kg=1): "a density", _dim(m=1, s=-1): "a velocity",
     _dim(s=-1): "a frequency", _ONE: "dimensionless", _dim(kg=1, s=-2): "a stiffness",
     _dim(kg=1, s=-1): "a damping coefficient", _dim(m=4, kg=-1, s=1): "a laminar flow conductance",

@@ -451,3 +451,15 @@ def test_ctrl_c_during_a_sweep_keeps_what_is_done_and_resume_finishes(rig_file, 
     assert data["complete"] is True and data["n_ok"] == 8
     p = [c["outputs"]["node.port.p"] for c in data["cases"]]
     assert max(p) - min(p) < 1e-6 * max(p)           # the delay changes nothing physical
+
+
+def test_a_broken_user_file_is_named(tmp_path, capsys):
+    bad = tmp_path / "broken.py"
+    bad.write_text("def build():\n    return 1 +\n")
+    assert main(["simulate", f"{bad}:build"]) == 2
+    err = capsys.readouterr().err
+    assert "broken.py (line 2): importing it failed: SyntaxError" in err
+    wrong = tmp_path / "wrong.py"
+    wrong.write_text("def build():\n    return 42\n")
+    assert main(["simulate", f"{wrong}:build"]) == 2
+    assert "returned int, not a pvgraph Circuit" in capsys.readouterr().err

@@ -3,7 +3,6 @@
 import math
 import warnings
 
-import numpy as np
 import pytest
 
 from components import FlowSource, Orifice, Tank, VolumeNode
@@ -263,18 +262,3 @@ def test_parameter_values_that_would_mislead_get_named_errors(value, message):
         Orifice(A=value)
     assert "invalid parameters for Orifice" in str(exc.value) and message in str(exc.value)
 
-
-def test_exposed_ports_are_names_in_results():
-    """A sub-circuit's exposed port reads like the inner port it stands for, flows included."""
-    inner = demo()
-    inner.expose("P", inner["node"].port)
-    inner.expose("drain", inner["orifice"].b)
-    outer = Circuit("outer")
-    outer.add("bench", inner)
-    sol = simulate(outer, 0.5)
-    assert np.array_equal(sol["bench.P.p"], sol["bench.node.port.p"])
-    assert np.array_equal(sol["bench.drain.q"], sol["bench.orifice.b.q"])
-    assert sol.final("bench.drain.q") == pytest.approx(-lpm(10), rel=1e-2)  # out of the orifice
-    assert sol.unit("bench.P.p") == "Pa" and "bench.P.p" in sol.names
-    with pytest.raises(KeyError, match="bench.P.p"):
-        sol["bench.P.pp"]
