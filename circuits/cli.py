@@ -170,8 +170,11 @@ def _rig_case(*, scenario: str, preset: str, law: str, settle: float, after: flo
             raise ParameterError(f"U_input = {u!r}: {exc.errors()[0]['msg']}") from None
     p = with_values(_preset(preset), params)
     r = V.run_scenario(s, p, law=law, settle=settle, after=after)
-    return {**r.simulated, **r.margins, "settled": float(r.settled),
-            "settle_deviation": r.settle_deviation, "steps": float(r.steps)}
+    out = {**r.simulated, **r.margins, "settled": float(r.settled),
+           "settle_deviation": r.settle_deviation, "steps": float(r.steps)}
+    if not math.isfinite(r.settle_deviation):   # a run too short to judge: no deviation, not
+        del out["settle_deviation"]             # a non-finite result
+    return out
 
 
 def _format_sweep_table(result, si: bool = False) -> str:
