@@ -797,6 +797,9 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print(f"pvgraph {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:          # the output went to a reader that stopped (| head)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":
