@@ -7,7 +7,7 @@ pressure drop over L3 after the step is kept as a trace (the report's figures 4.
 
 ``validate()`` runs the scenarios on a process pool; ``comparison_records()`` turns the results
 into the ``{scenario, quantity, unit, measured, simulated}`` records written by
-``pvgraph validate --json``; ``targets()`` checks the issue's acceptance targets.
+``pvgraph validate --json``; ``targets()`` checks the validation targets (flow, pressures, margins, settling).
 """
 
 from __future__ import annotations
@@ -169,7 +169,8 @@ def _report_value(s: Scenario, q: str):
 
 
 def targets(results) -> dict:
-    """The issue's acceptance targets, each with its verdict and the numbers behind it."""
+    """The validation targets (flow within the meter's accuracy, pressures, pump margin and
+    spool drop, settling), each with its verdict and the numbers behind it."""
     flow_ok, press_ok, margin_ok, settled_ok = [], [], [], []
     for r in results:
         if r.error:

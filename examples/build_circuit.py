@@ -9,7 +9,7 @@ damper. The pump pushes the piston out until the spring force balances the press
 then has nowhere to go but the relief valve, which holds the supply at its cracking pressure.
 At rest the piston sits where A_A * p_relief = F0 + k * x.
 
-Run: ``python examples/build_circuit.py`` (writes build_circuit.png).
+Run: ``python examples/build_circuit.py`` (writes examples/output/build_circuit.png).
 """
 
 from __future__ import annotations
@@ -31,6 +31,9 @@ P_RELIEF = bar(100)
 A_CAP = math.pi / 4 * 0.04 ** 2          # 40 mm bore
 A_ROD = math.pi / 4 * 0.022 ** 2         # 22 mm rod
 K_SPRING, F0_SPRING = 1e5, 1000.0       # N/m, N
+
+#: where the figures go unless a folder is given: examples/output/, not the repository root
+OUTPUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "output")
 
 
 def build() -> Circuit:
@@ -54,7 +57,7 @@ def build() -> Circuit:
     return c
 
 
-def main(outdir=".") -> dict:
+def main(outdir=OUTPUT) -> dict:
     sol = simulate(build(), t_end=3.0, rtol=1e-5)
     x = sol["cylinder.flange.x"]
     result = {

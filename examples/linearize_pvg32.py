@@ -4,11 +4,12 @@ linear step response against the nonlinear model.
 Inputs: the PVE input voltage ``U``. Outputs: the main spool position
 ``pvg.pvb.main_spool.flange.x`` and the load (LS) pressure ``load.f.port.p``.
 
-Run: ``python examples/linearize_pvg32.py [out.png]``.
+Run: ``python examples/linearize_pvg32.py [out.png]`` (default examples/output/).
 """
 
 from __future__ import annotations
 
+import os
 import sys
 
 import numpy as np
@@ -24,8 +25,12 @@ T_END = 0.3      # [s] duration of the step comparison
 OUTPUTS = ["pvg.pvb.main_spool.flange.x", "load.f.port.p"]
 X = OUTPUTS[0]
 
+#: where the figures go unless a folder is given: examples/output/, not the repository root
+OUTPUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "output")
 
-def main(path: str = "linearize_pvg32.png", *, verbose: bool = True) -> dict:
+
+def main(path: str = os.path.join(OUTPUT, "linearize_pvg32.png"), *,
+         verbose: bool = True) -> dict:
     p = report_tuned()
 
     def build(u):
@@ -61,4 +66,4 @@ def main(path: str = "linearize_pvg32.png", *, verbose: bool = True) -> dict:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "linearize_pvg32.png")
+    main(sys.argv[1] if len(sys.argv) > 1 else os.path.join(OUTPUT, "linearize_pvg32.png"))

@@ -55,6 +55,9 @@ class SpringAccumulator(Component):
 A, K, F0 = 20e-4, 5e4, 2000.0          # preload pressure 10 bar, 125 bar per litre
 Q = lpm(6)
 
+#: where the figures go unless a folder is given: examples/output/, not the repository root
+OUTPUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "output")
+
 
 def analytic_pressure(V):
     return (F0 + K * V / A) / A
@@ -91,7 +94,7 @@ def transient_vs_analytic(t_end=2.0) -> dict:
             "x_final": sol.final("dut.x")}
 
 
-def main(outdir=".") -> dict:
+def main(outdir=OUTPUT) -> dict:
     result = {"residual": residual_at_analytic_point(), **transient_vs_analytic()}
     print(f"residual at the analytic point (relative): {result['residual']:.2e}")
     print(f"pressure after 2 s of {Q * 60000:.0f} L/min: {result['p_final_bar']:.3f} bar "

@@ -30,7 +30,7 @@ At 3.5 mm the duty cycles are 44 % (port A valves) and 13 % (port B valves), ins
 settling, which the report's metrics describe, happen around this point. A second point at
 mid-step (1.75 mm) shows how little the numbers depend on the choice.
 
-Run: ``python examples/pve_linear_model.py [outdir]`` (writes pve_*.png there).
+Run: ``python examples/pve_linear_model.py [outdir]`` (writes pve_*.png there; default examples/output/).
 """
 
 from __future__ import annotations
@@ -81,8 +81,13 @@ T415 = dict(beta=7000e5, V4=1.29e-5, K_NC=3e-7, K_NO=1.7e-7, K_NC_QP=8.8e-12,
             K_lvdt=0.945, tau_lvdt=0.0059, K_DT=70.0 / mm(1.0))
 
 
+#: where the figures go unless a folder is given: examples/output/, not the repository root
+OUTPUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "output")
+
+
 # ------------------------------------------------------------------------------------------
 # Table 4.15, rebuilt
+
 def table_4_15(c_vm: float = 2500.0, variant: str = "evaluated") -> dict:
     """The report's linear model (table 4.15, fig. 4.59) as python-control transfer functions.
 
@@ -313,7 +318,7 @@ def _plots(outdir, curves_step, curves_gain, bode, loci, poles_table, poles_auto
     return paths
 
 
-def main(outdir=".", *, verbose: bool = True) -> dict:
+def main(outdir=OUTPUT, *, verbose: bool = True) -> dict:
     outdir = str(outdir)
     os.makedirs(outdir, exist_ok=True)
     p = report_tuned()
@@ -504,4 +509,4 @@ def _print(res):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else ".")
+    main(sys.argv[1] if len(sys.argv) > 1 else OUTPUT)

@@ -30,6 +30,9 @@ from pvgraph.units import mm2, to_bar, to_lpm  # noqa: E402
 VOLTAGES = {"sec1": 4.6, "sec2": 5.0}   # both below 5.75 V: both feed port B
 T_END = 2.0
 
+#: where the figures go unless a folder is given: examples/output/, not the repository root
+OUTPUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "output")
+
 
 def build_stack(p=None, voltages=VOLTAGES) -> Circuit:
     p = p or report_tuned()
@@ -72,7 +75,7 @@ def build_stack(p=None, voltages=VOLTAGES) -> Circuit:
     return c
 
 
-def main(outdir=".") -> dict:
+def main(outdir=OUTPUT) -> dict:
     sol = simulate(build_stack(), t_end=T_END, rtol=1e-4)
     r = {"p_pump_bar": to_bar(sol.final("pvp.Vp.port.p")),
          "p_ls_common_bar": to_bar(sol.final("ls_node.port.p"))}

@@ -17,7 +17,7 @@ checks that they add up to the pump's power, and compares with a constant-pressu
 must always run at the highest pressure it serves (160 bar + the margin) and relieves the same
 excess flow there.
 
-Run: ``python examples/pvp_bypass_loss.py [outdir]`` (writes pvp_bypass_loss.png).
+Run: ``python examples/pvp_bypass_loss.py [outdir]`` (writes pvp_bypass_loss.png to outdir, default examples/output/).
 """
 
 from __future__ import annotations
@@ -44,6 +44,9 @@ U_INPUT = 4.45                                   # [V]: about 10 L/min to port B
 LOAD_PRESSURES = np.arange(10.0, 161.0, 10.0)    # [bar]
 BYPASS = "pvg.pvp.A3"                            # PVP spool edge to tank
 METERING = ("pvg.pvb.P0", "pvg.pvb.A1", "pvg.pvb.A2", "pvg.pvb.PK", "pvg.pvb.PB")
+
+#: where the figures go unless a folder is given: examples/output/, not the repository root
+OUTPUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "output")
 
 
 def pressure_load(p_load: float) -> Circuit:
@@ -82,7 +85,7 @@ def power_split(op) -> dict:
             "imbalance": pump - load - bypass - metering - other}
 
 
-def main(outdir: str = ".", *, verbose: bool = True) -> dict:
+def main(outdir: str = OUTPUT, *, verbose: bool = True) -> dict:
     rows, y = [], None
     for pl in LOAD_PRESSURES:
         op = operating_point(pl, y)
@@ -131,4 +134,4 @@ def main(outdir: str = ".", *, verbose: bool = True) -> dict:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else ".")
+    main(sys.argv[1] if len(sys.argv) > 1 else OUTPUT)

@@ -34,6 +34,9 @@ D_PISTON = 0.04     # [m]: the piston of circuits.rig.cylinder_load
 PROBES = {"pump": "pvg.pvp.Vp.port.p", "LS": "pvg.pvb.LS_channel.port.p",
           "port_B": "pvg.pvb.PB.b.p", "port_A": "pvg.pvb.AT.a.p"}
 
+#: where the figures go unless a folder is given: examples/output/, not the repository root
+OUTPUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "output")
+
 
 def _summary(sol) -> dict:
     out = {k: to_bar(sol.final(n)) for k, n in PROBES.items()}
@@ -43,7 +46,7 @@ def _summary(sol) -> dict:
     return out
 
 
-def main(outdir=".") -> dict:
+def main(outdir=OUTPUT) -> dict:
     p = report_tuned()
     results, sols = {}, {}
     for label, load in (("laminar", laminar_load(p)), ("cylinder", cylinder_load(p))):

@@ -17,10 +17,13 @@ circuit and connected like any component (``rig > pvg > pvb > compensator``).
 
 from __future__ import annotations
 
+import difflib
 import re
+import warnings
 
 from .component import Component, Port, PortRef
-from .errors import CircuitError, ConnectionError_
+from .errors import (CircuitError, ConnectionError_, ParameterError, PlausibilityWarning,
+                     StructureError)
 
 __all__ = ["Circuit"]
 
@@ -41,7 +44,7 @@ class Circuit:
     # building ----------------------------------------------------------------------------------
     def add(self, name: str, component):
         """Add ``component`` under ``name`` and return it."""
-        if not isinstance(name, str) or not _NAME.match(name):
+        if not isinstance(name, str) or not _NAME.fullmatch(name):
             raise CircuitError(f"circuit {self.path!r}: component name {name!r} is not a valid "
                                f"identifier (letters, digits, underscore; not starting with a "
                                f"digit)")
@@ -52,11 +55,15 @@ class Circuit:
         if not isinstance(component, (Component, Circuit)):
             raise CircuitError(f"circuit {self.path!r}: {name!r} must be a Component or Circuit, "
                                f"got {type(component).__name__}")
+        node = self
+        while node is not None:       # a circuit inside itself would recurse without end
+            if node is component:
+                what = "itself" if component is self else f"its enclosing circuit {node.path!r}"
+                raise CircuitError(f"circuit {self.path!r} cannot contain {what} (as {name!r})")
+            node = node._parent
         if component._parent is not None:
             raise CircuitError(f"{type(component).__name__} {component.path!r} is already part of "
                                f"a circuit; create a new instance for {name!r}")
-        if component is self:
-            raise CircuitError(f"circuit {self.path!r} cannot contain itself")
         component._name = name
         component._parent = self
         self._components[name] = component
@@ -79,7 +86,7 @@ class Circuit:
 
     def expose(self, name: str, inner, description: str = "") -> PortRef:
         """Make the inner port ``inner`` a port of this circuit called ``name``."""
-        if not _NAME.match(name):
+        if not isinstance(name, str) or not _NAME.fullmatch(name):
             raise CircuitError(f"circuit {self.path!r}: port name {name!r} is not an identifier")
         if name in self._exposed or name in self._components:
             raise CircuitError(f"circuit {self.path!r} already has a port or component {name!r}")
@@ -179,9 +186,216 @@ class Circuit:
 
     # compiling ---------------------------------------------------------------------------------
     def compile(self, **options):
-        """Compile to a :class:`~pvgraph.system.System` (see :func:`pvgraph.compiler.compile`)."""
+        """Compile to a :class:`~pvgraph.system.System` (see :func:`pvgraph.compiler.compile`).
+
+        A hydraulic network with no pressure reference (no tank or pressure source) is named:
+        an error when the compiler finds it singular, a :class:`PlausibilityWarning` when its
+        volumes let it compile (the pressure level of two or more volumes then floats on their
+        start values).
+        """
         from .compiler import compile_circuit
-        return compile_circuit(self, **options)
+        try:
+            system = compile_circuit(self, **options)
+        except StructureError as exc:
+            loose = [i for i in _pressure_islands(self) if not i["volumes"]]
+            if loose:
+                raise StructureError(f"{_no_reference_message(self, loose)}\n(The structural "
+                                     f"check of the compiler: {exc})") from None
+            raise
+        floating = [i for i in _pressure_islands(self) if len(i["volumes"]) > 1]
+        if floating:
+            names = "; ".join(", ".join(sorted(i["components"])[:4]) for i in floating)
+            warnings.warn(PlausibilityWarning(
+                f"circuit {self.name!r}: the hydraulic network of {names} has no pressure "
+                f"reference (no Tank or pressure source): its pressures float on the start "
+                f"values of its volumes. Connect a Tank (or a PressureSource) to it."),
+                stacklevel=2)
+        return system
+
+    # parameters --------------------------------------------------------------------------------
+    def parameters(self) -> dict[str, tuple]:
+        """``{"component.field": (value, description)}`` of every leaf component, to any depth."""
+        out = {}
+        for path, comp in _leaves(self):
+            for field, info in type(comp.params).model_fields.items():
+                out[f"{path}.{field}"] = (getattr(comp.params, field), info.description or "")
+        return out
+
+    def _parameter_owner(self, path: str):
+        comp_path, _, field = path.rpartition(".")
+        pool = self.parameters()
+        if comp_path and comp_path in self and not isinstance(self[comp_path], Circuit) and \
+                field in type(self[comp_path].params).model_fields:
+            return self[comp_path], field
+        close = difflib.get_close_matches(path, list(pool), n=3, cutoff=0.6)
+        hint = f" Did you mean {', '.join(map(repr, close))}?" if close else ""
+        raise ParameterError(f"circuit {self.name!r} has no parameter {path!r} (write "
+                             f"component.field, e.g. {next(iter(pool), 'pump.Q')!r}).{hint}")
+
+    def _validated(self, values: dict) -> list:
+        from pydantic import ValidationError
+
+        from .component import _describe_validation
+        updates: dict = {}
+        for path, value in values.items():
+            comp, field = self._parameter_owner(path)
+            updates.setdefault(id(comp), (comp, {}))[1][field] = value
+        out = []
+        for comp, fields in updates.values():
+            try:
+                params = type(comp.params)(**{**dict(comp.params), **fields})
+            except ValidationError as exc:
+                msg = _describe_validation(f"{type(comp).__name__} {comp.path!r}", exc,
+                                           list(type(comp.params).model_fields))
+                raise ParameterError(msg) from None
+            out.append((comp, params))
+        return out
+
+    def check_parameters(self, values: dict) -> None:
+        """Raise :class:`ParameterError` if ``{"component.field": value}`` would be invalid."""
+        self._validated(values)
+
+    def set_parameters(self, values: dict) -> None:
+        """Set parameters by dotted path, ``{"orifice.A": "2 mm^2", "pump.Q": 1e-4}``."""
+        for comp, params in self._validated(values):
+            comp.params = params
+
+    def port_aliases(self) -> dict[str, str]:
+        """Names through exposed ports: ``{"valve.P.p": "valve.spool.P.p", ...}``.
+
+        Every variable of an exposed port of a sub-circuit is also reachable by the name of
+        the exposing circuit's port; the values are the names the compiled system uses.
+        """
+        out = {}
+
+        def walk(node, prefix):
+            for name, child in node._components.items():
+                if isinstance(child, Circuit):
+                    walk(child, f"{prefix}{name}.")
+            if node is self:
+                return
+            for port, (ref, _) in node._exposed.items():
+                owner, inner = _leaf_port(ref)
+                spec = owner._port_spec(inner)
+                rel = owner.path[len(self.path) + 1:] if self._parent is not None else owner.path
+                for var in filter(None, (spec.domain.across, spec.domain.through)):
+                    target = f"{rel}.{inner}" if spec.domain.name == "signal" else \
+                        f"{rel}.{inner}.{var}"
+                    alias = f"{prefix}{port}" if spec.domain.name == "signal" else \
+                        f"{prefix}{port}.{var}"
+                    out[alias] = target
+                    if spec.domain.name == "signal":
+                        break
+        walk(self, "")
+        return out
 
     def __repr__(self):
         return f"<Circuit {self.path} with {len(self._components)} components>"
+
+
+def _leaves(circuit: Circuit) -> list:
+    """``(dotted path, component)`` of every leaf component below ``circuit``."""
+    out = []
+
+    def walk(node, prefix):
+        for name, child in node._components.items():
+            if isinstance(child, Circuit):
+                walk(child, f"{prefix}{name}.")
+            else:
+                out.append((f"{prefix}{name}", child))
+    walk(circuit, "")
+    return out
+
+
+def _leaf_port(ref: PortRef):
+    """The leaf (component, port name) an exposed port stands for."""
+    owner, name = ref.owner, ref.name
+    while isinstance(owner, Circuit):
+        inner = owner._exposed[name][0]
+        owner, name = inner.owner, inner.name
+    return owner, name
+
+
+def _pressure_islands(circuit: Circuit) -> list[dict]:
+    """Hydraulic networks without a pressure reference: ``{"components", "volumes"}`` each.
+
+    Ports joined by a connection are one network; so are two ports of one component when an
+    equation holds both their flows (a flow path: an orifice, a valve edge). A port fixes the
+    pressure level when its component's equations use its pressure but never its flow (a
+    Tank, a pressure source); a volume is a port whose pressure's time derivative appears.
+    """
+    from . import expr as E
+    from .component import HYDRAULIC
+
+    leaves = _leaves(circuit)
+    path_of = {id(c): p for p, c in leaves}
+    parent: dict[tuple, tuple] = {}
+    for path, comp in leaves:
+        for pname, port in comp.ports.items():
+            if port.domain is HYDRAULIC:
+                parent[(path, pname)] = (path, pname)
+
+    def find(a):
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    def join(a, b):
+        parent[find(a)] = find(b)
+
+    def walk(node):
+        for refs in node._connections:
+            ends = []
+            for r in refs:
+                if r.port.domain is HYDRAULIC:
+                    owner, pname = _leaf_port(r)
+                    ends.append((path_of[id(owner)], pname))
+            for a, b in zip(ends, ends[1:]):
+                join(a, b)
+        for child in node._components.values():
+            if isinstance(child, Circuit):
+                walk(child)
+    walk(circuit)
+    refs, volumes = set(), set()
+    for path, comp in leaves:
+        hyd = [n for n, pt in comp.ports.items() if pt.domain is HYDRAULIC]
+        if not hyd:
+            continue
+        try:
+            residuals, _ = comp.trace(path)
+        except Exception:           # the compiler reports a component that cannot trace
+            refs.update((path, n) for n in hyd)
+            continue
+        used = set()
+        for r in residuals:
+            leaves_r = {f"{op}:{name}" for op, name in E.leaves(r, ("sym", "der"))}
+            used |= leaves_r
+            flows = [n for n in hyd if f"sym:{path}.{n}.q" in leaves_r]
+            for a, b in zip(flows, flows[1:]):
+                join((path, a), (path, b))
+        for n in hyd:
+            if f"sym:{path}.{n}.p" in used and f"sym:{path}.{n}.q" not in used:
+                refs.add((path, n))
+            if f"der:{path}.{n}.p" in used:
+                volumes.add((path, n))
+    islands: dict[tuple, dict] = {}
+    for node in parent:
+        island = islands.setdefault(find(node), {"components": set(), "volumes": set(),
+                                                 "ref": False})
+        island["components"].add(node[0])
+        if node in volumes:
+            island["volumes"].add(node)
+        if node in refs:
+            island["ref"] = True
+    return [i for i in islands.values() if not i["ref"]]
+
+
+def _no_reference_message(circuit: Circuit, islands: list[dict]) -> str:
+    parts = []
+    for i in islands:
+        names = ", ".join(sorted(i["components"])[:6])
+        parts.append(f"the hydraulic network of {names} has no pressure reference: nothing "
+                     f"fixes its pressure level, so every pressure in it is undetermined. "
+                     f"Connect a Tank (or a PressureSource) to one of its nodes.")
+    return f"circuit {circuit.name!r}: " + " ".join(parts)

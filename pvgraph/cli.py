@@ -1,19 +1,29 @@
-"""The ``pvgraph`` command line.
+"""The ``pvgraph`` command line: any circuit, from a Python file, a module, a model file or a
+registered name.
 
 ::
 
-    pvgraph validate                 # the PVG 32 rig validation against the lab data
-    pvgraph validate --calibrate     # fit the uncertain rig parameters first, then validate
-    pvgraph simulate test-2 --t-end 2 --csv out.csv --plot out.png
-    pvgraph components               # the component library with ports and parameters
-    pvgraph graph rig --out rig.png  # draw a circuit
-    pvgraph sweep --scenario test-9 --param U_input=4.2:4.6:5 --settle 2 --out sweep-out
-    pvgraph sweep --scenario sweep-4 --param rig.return_line_K=log:2e-9:2e-8 --random 20
-    pvgraph sweep --list-params      # the parameter names a sweep can vary
-    pvgraph linearize --scenario test-9 --json lin.json --bode bode.png
+    pvgraph simulate my_rig.py:build --t-end 2 --var node.port.p --csv out.csv
+    pvgraph simulate mypackage.rigs:build_press --plot press.png
+    pvgraph simulate press.toml                      # a saved model file
+    pvgraph vars my_rig.py:build                     # every variable with unit and description
+    pvgraph graph my_rig.py:build --out rig.svg      # a layered schematic (PNG, SVG or DOT)
+    pvgraph sweep my_rig.py:build --param orifice.A=1e-6:4e-6:4 --var node.port.p --out study
+    pvgraph sweep ... --resume --timeout 60          # keep what is done, skip a hanging case
+    pvgraph linearize my_rig.py:build --input pump.Q --output node.port.p
+    pvgraph export my_rig.py:build --out rig.toml    # save as a model file (TOML or JSON)
+    pvgraph components                               # the component library
+    pvgraph circuits                                 # the circuits applications registered
 
-Exit codes: 0 success, 1 a run failed (a scenario did not simulate, a sweep case failed, no
-steady state to linearise at), 2 bad arguments.
+A target ``FILE.py:NAME`` or ``MODULE:NAME`` names a function returning a
+:class:`~pvgraph.Circuit` (called with the ``--option KEY=VALUE`` given) or a Circuit itself;
+``FILE.toml`` / ``FILE.json`` is a model file (:mod:`pvgraph.modelfile`); any other name is
+looked up among the circuits applications registered (:mod:`pvgraph.registry`, e.g. the PVG 32
+``rig`` and its lab scenarios ``test-1`` ...). Values are printed for people (bar, L/min, mm;
+``--si`` prints SI); files are SI and say so in their headers.
+
+Exit codes: 0 success, 1 a run failed (a simulation stopped, a sweep case failed, no steady
+state to linearise at), 2 bad arguments (checked before anything runs), 130 interrupted.
 """
 
 from __future__ import annotations
@@ -21,17 +31,24 @@ from __future__ import annotations
 import argparse
 import difflib
 import functools
+import importlib
+import importlib.util
+import inspect
 import json
 import math
 import os
 import sys
-import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
 
 from ._progress import ProgressBar
 from .errors import InitializationError, ParameterError, PvgraphError, SolverError
-from .units import to_bar, to_lpm, to_mm
+from .registry import registry
+from .units import declared_unit, format_value, to_unit
 
-__all__ = ["main"]
+__all__ = ["main", "build_parser", "load_target", "Target"]
+
+DEFAULT_T_END = 10.0  # [s]
 
 
 def _progress(total: int, label: str):
@@ -50,120 +67,271 @@ def _write_json_atomic(path: str, data) -> None:
     _atomic_write(path, lambda f: json.dump(data, f, indent=1))
 
 
-def _preset(name: str):
-    from circuits.pvg32.parameters import report_initial, report_tuned
-    presets = {"tuned": report_tuned, "initial": report_initial}
-    if name not in presets:
-        raise PvgraphError(f"unknown preset {name!r}; choose one of {sorted(presets)}")
-    return presets[name]()
+def _display(value: float, unit: str, si: bool = False) -> str:
+    return format_value(value, unit, si)
 
 
-def cmd_validate(args) -> int:
-    from circuits import validation as V
-    from circuits.scenarios import scenario_names
+# --------------------------------------------------------------------------------------------
+# targets: FILE.py:NAME, MODULE:NAME, FILE.toml / FILE.json, registered names
 
-    names = args.scenario or scenario_names()
-    unknown = [n for n in names if n not in scenario_names()]
-    if unknown:
-        raise PvgraphError(f"unknown scenario(s) {unknown}; valid: {', '.join(scenario_names())}")
-    params = _preset(args.preset)
-    label = f"preset '{args.preset}'"
-    os.makedirs(args.out, exist_ok=True)
-    if args.calibrate:
-        params = _calibrate(args, params)
-        label = "calibrated parameters"
-    t0 = time.perf_counter()
-    results = V.validate(params, names, law=args.law, workers=args.workers,
-                         progress=_progress(len(names), "simulating"))
-    wall = time.perf_counter() - t0
-    print(f"PVG 32 on the lab rig: {len(results)} scenarios, {label}, "
-          f"{args.law} load, {wall:.1f} s wall\n")
-    print(V.format_table(results))
-    print()
-    for label, (ok, total, _) in V.targets(results).items():
-        print(f"  {'PASS' if ok == total else 'miss'}  {label}: {ok}/{total}")
-    json_path = args.json or os.path.join(args.out, "validation.json")
-    _write_json_atomic(json_path, V.comparison_records(results))
-    print(f"\nwrote {json_path}")
-    if not args.no_plots:
-        from .plotting import plot_flow_vs_voltage, plot_step_traces
-        for path in (plot_flow_vs_voltage(results, os.path.join(args.out, "flow_vs_voltage.png")),
-                     plot_step_traces(results, os.path.join(args.out, "step_dp_L3.png"))):
-            print(f"wrote {path}")
-    failed = [r.name for r in results if r.error]
-    if failed:
-        print(f"\n{len(failed)} scenario(s) failed to simulate: {', '.join(failed)}",
-              file=sys.stderr)
-        return 1
-    return 0
+@dataclass
+class Target:
+    """A circuit the command line can build: ``build(**options)`` gives a fresh Circuit."""
+
+    spec: str
+    build: Callable[..., Any]
+    variables: tuple[str, ...] = ()
+    t_end: float | None = None
+    options: dict = field(default_factory=dict)
+    description: str = ""
+
+    def circuit(self):
+        from .circuit import Circuit
+        try:
+            c = self.build(**self.options)
+        except TypeError as exc:
+            if self.options and "argument" in str(exc):
+                raise PvgraphError(f"{self.spec}: the builder does not take the options "
+                                   f"{sorted(self.options)}: {exc}") from None
+            raise
+        if not isinstance(c, Circuit):
+            raise PvgraphError(f"{self.spec} returned {type(c).__name__}, not a pvgraph "
+                               f"Circuit")
+        return c
 
 
-def _calibrate(args, start):
-    """Fit ``args.fit`` to the lab's steady data; print and save the estimates; return them."""
-    from circuits import calibration as C
-    from circuits.pvg32.parameters import with_values
+def _import_file(path: str):
+    if not os.path.isfile(path):
+        raise PvgraphError(f"no such file {path!r}")
+    name = "_pvgraph_target_" + "".join(ch if ch.isalnum() else "_"
+                                        for ch in os.path.abspath(path))
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    folder = os.path.dirname(os.path.abspath(path))
+    sys.path.insert(0, folder)      # the file's own imports of its neighbours
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:
+        del sys.modules[name]
+        where = f" (line {exc.lineno})" if isinstance(exc, SyntaxError) else ""
+        raise PvgraphError(f"{path}{where}: importing it failed: {type(exc).__name__}: "
+                           f"{exc}") from exc
+    except BaseException:
+        del sys.modules[name]
+        raise
+    finally:
+        sys.path.remove(folder)
+    return module
 
-    if args.law != "laminar":
-        raise PvgraphError("--calibrate fits the laminar load constants; use --law laminar")
-    fit = args.fit or list(C.DEFAULT_FIT)
-    for path in fit:
-        C.fit_parameter(path, start)          # unknown names fail here, before any solving
-    if args.preset == "tuned":
-        # start the fitted rig quantities from the report's untuned table 4.9, so the estimates
-        # are compared with the hand-tuned table 4.14 from an independent start
-        from circuits.pvg32.parameters import report_initial
-        initial = report_initial()
-        start = with_values(start, {k: v for k, v in (
-            ("rig.supply_voltage", initial.rig.supply_voltage),
-            ("rig.pump_flow", initial.rig.pump_flow)) if k in fit})
 
-    def progress(nfev, cost):
-        if sys.stderr.isatty():
-            sys.stderr.write(f"\rcalibrating: {nfev} model evaluations, cost {cost:.4g}   ")
-            sys.stderr.flush()
+def load_target(spec: str, options: dict | None = None) -> Target:
+    """The :class:`Target` a command-line argument names (see the module docstring)."""
+    options = dict(options or {})
+    if spec.endswith((".toml", ".json")) and ":" not in spec:
+        from .modelfile import load
+        if not os.path.isfile(spec):
+            raise PvgraphError(f"no such model file {spec!r}")
+        return Target(spec, lambda: load(spec), description=f"model file {spec}")
+    module_part, colon, attr = spec.rpartition(":")
+    if colon and module_part and (module_part.endswith(".py") or "/" in module_part
+                                  or os.sep in module_part):
+        module = _import_file(module_part)
+    elif colon and module_part and not (len(module_part) == 1 and os.sep == "\\"):
+        try:
+            module = importlib.import_module(module_part)
+        except ImportError as exc:
+            raise PvgraphError(f"cannot import module {module_part!r} of target {spec!r}: "
+                               f"{exc}") from None
+    elif spec.endswith(".py"):
+        module, attr = _import_file(spec), "build"
+        if not hasattr(module, "build"):
+            raise PvgraphError(f"{spec} has no function build(); name the function that "
+                               f"returns the circuit: {spec}:NAME")
+    else:
+        entries = registry.load().circuits
+        if spec in entries:
+            e = entries[spec]
+            return Target(spec, e.build, e.variables, e.t_end,
+                          {k: v for k, v in options.items() if k in e.options}, e.description)
+        close = difflib.get_close_matches(spec, list(entries), n=3)
+        hint = f" Did you mean {', '.join(map(repr, close))}?" if close else ""
+        known = f" Registered circuits: {', '.join(entries)}." if entries else \
+            " No application has registered circuits."
+        raise PvgraphError(f"unknown circuit {spec!r}.{hint} Give FILE.py:FUNCTION, "
+                           f"MODULE:FUNCTION, a model file (.toml, .json) or a registered "
+                           f"name.{known}")
+    if not hasattr(module, attr):
+        found = [n for n, v in vars(module).items() if callable(v) and not n.startswith("_")]
+        close = difflib.get_close_matches(attr, found, n=3)
+        hint = f" Did you mean {', '.join(map(repr, close))}?" if close else ""
+        raise PvgraphError(f"{module_part or spec} has no {attr!r}.{hint}")
+    obj = getattr(module, attr)
+    from .circuit import Circuit
+    if isinstance(obj, Circuit):
+        return Target(spec, lambda: obj, description=obj.name)
+    if not callable(obj):
+        raise PvgraphError(f"{spec} is {type(obj).__name__}; it must be a Circuit or a function "
+                           f"returning one")
+    user = {k: v for k, v in options.items() if k in _accepted(obj, options)}
+    return Target(spec, obj, tuple(getattr(obj, "variables", ())), getattr(obj, "t_end", None),
+                  user, (inspect.getdoc(obj) or "").split("\n")[0])
 
-    t0 = time.perf_counter()
-    result, fitted = C.calibrate_rig(fit, start=start, workers=args.workers or 2,
-                                     progress=progress)
-    if sys.stderr.isatty():
-        sys.stderr.write("\n")
-    print(f"Calibration against the lab's steady states ({len(result.measured)} values, "
-          f"{time.perf_counter() - t0:.0f} s wall); the report's hand tuning beside it\n")
-    print(result.table(C.TABLE_4_14, "table 4.14"))
-    print()
-    print(C.residual_summary(result))
-    print()
-    path = os.path.join(args.out, "calibration.json")
-    _write_json_atomic(path, result.to_dict())
-    print(f"wrote {path}\n")
-    return fitted
 
+def _accepted(func, options) -> set:
+    try:
+        sig = inspect.signature(func)
+    except (TypeError, ValueError):
+        return set(options)
+    if any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values()):
+        return set(options)
+    return set(sig.parameters) & set(options)
+
+
+def _parse_options(pairs) -> dict:
+    out = {}
+    for pair in pairs or []:
+        key, eq, value = pair.partition("=")
+        if not eq or not key.strip().isidentifier():
+            raise PvgraphError(f"--option {pair!r}: write KEY=VALUE (KEY a keyword argument of "
+                               f"the builder)")
+        try:
+            out[key.strip()] = json.loads(value)
+        except ValueError:
+            out[key.strip()] = value
+    return out
+
+
+def _target(args) -> Target:
+    """The target of a command, with the builder options of ``--option`` and extensions."""
+    options = {}
+    if args.target in registry.load().circuits:     # application options for its own circuits
+        for ext in registry.extensions.get(args.command, []):
+            if ext.options is not None:
+                options.update(ext.options(args))
+    generic = _parse_options(getattr(args, "option", None))
+    target = load_target(args.target, {**options, **generic})
+    if generic:
+        missing = set(generic) - set(target.options)
+        if missing:
+            raise PvgraphError(f"{args.target} does not take the option(s) {sorted(missing)}")
+    return target
+
+
+def _aliases(circuit) -> dict:
+    return circuit.port_aliases()
+
+
+def check_names(system, names, aliases=None, what: str = "--var") -> list[str]:
+    """The names as the system knows them; an unknown name raises with close matches."""
+    aliases = aliases or {}
+    pool = list(system.all_names()) + list(aliases)
+    out = []
+    for name in names:
+        real = aliases.get(name, name)
+        try:
+            system.unit(real)
+        except KeyError:
+            close = difflib.get_close_matches(name, pool, n=3, cutoff=0.6)
+            hint = f"; did you mean {', '.join(map(repr, close))}?" if close else "."
+            raise PvgraphError(f"{what} {name!r} is not a variable or output of "
+                               f"{system.name!r}{hint} List them with pvgraph vars.") from None
+        out.append(real)
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# simulate, vars, graph, export, components, circuits
 
 def cmd_simulate(args) -> int:
-    from circuits.scenarios import scenario_names
-    from circuits import validation as V
     from .simulate import simulate
 
-    if args.target not in scenario_names():
-        raise PvgraphError(f"unknown scenario {args.target!r}; valid: "
-                           f"{', '.join(scenario_names())}")
-    scenario = V.get_scenario(args.target)
-    params = _preset(args.preset)
-    step = scenario.solenoid_event in ("opening", "closing")
-    t_switch = args.t_switch if step else None
-    system = V._build(scenario, params, args.law, t_switch).compile()
-    sol = simulate(system, args.t_end, rtol=args.rtol, solver=args.solver)
-    names = args.var or ["load.f.port.p", "load.m.port.p", "load.b.port.p", "load.L2.q",
-                         "load.L3.q", "pvg.pvb.main_spool.flange.x"]
-    for n in names:
-        print(f"{n:40s} final {sol.final(n): .6g} {sol.unit(n)}")
+    target = _target(args)
+    circuit = target.circuit()
+    system = circuit.compile()
+    shown = args.var or list(target.variables) or _default_variables(system)
+    names = check_names(system, shown, _aliases(circuit))
+    t_end = args.t_end if args.t_end is not None else (target.t_end or DEFAULT_T_END)
+    if not (math.isfinite(t_end) and t_end > 0):
+        raise PvgraphError(f"--t-end must be a finite time > 0 s, got {t_end}")
+    try:
+        sol = simulate(system, t_end, rtol=args.rtol, solver=args.solver)
+    except PvgraphError as exc:
+        print(f"pvgraph simulate: {target.spec}: {exc}", file=sys.stderr)
+        return 1
+    width = max(len(n) for n in shown)
+    for label, n in zip(shown, names):
+        print(f"{label:{width}s}  final {_display(sol.final(n), sol.unit(n), args.si)}")
     print(f"steps {sol.stats.get('nsteps')}, residual evaluations {sol.stats.get('nre')}")
     if args.csv:
         sol.to_csv(args.csv, names)
-        print(f"wrote {args.csv}")
+        print(f"wrote {args.csv} (SI units, named in its header)")
     if args.plot:
         from .plotting import plot_solution
-        print(f"wrote {plot_solution(sol, names, args.plot)}")
+        print(f"wrote {plot_solution(sol, names, args.plot, si=args.si)}")
+    return 0
+
+
+def _default_variables(system, limit: int = 8) -> list[str]:
+    """The states, pressures first, when neither the user nor the circuit names any."""
+    states = [n for n, d in zip(system.names, system.differential) if d]
+    states.sort(key=lambda n: (system.unit(n) != "Pa", n))
+    return (states or list(system.names))[:limit]
+
+
+def cmd_vars(args) -> int:
+    target = _target(args)
+    circuit = target.circuit()
+    system = circuit.compile()
+    rows = []
+    for k, n in enumerate(system.names):
+        kind = "state" if system.differential[k] else "algebraic"
+        rows.append((n, system.units[k], kind, system.descriptions[k] if system.descriptions
+                     else ""))
+    exposed = _aliases(circuit)
+    for n, (coef, tgt, off) in sorted(system.aliases.items()):
+        kind = f"= {tgt}" if tgt is not None and coef == 1.0 and off == 0.0 else \
+            (f"= {coef:g} * {tgt}" if tgt is not None else f"fixed {off:g}")
+        rows.append((n, system.unit(n), kind, ""))
+    for n, (unit, desc) in sorted((n, v[:2]) for n, v in system.observed.items()):
+        rows.append((n, unit, "output", desc or ""))
+    for alias, real in sorted(exposed.items()):
+        rows.append((alias, system.unit(real), f"= {real} (exposed port)", ""))
+    if args.grep:
+        rows = [r for r in rows if args.grep.lower() in r[0].lower()]
+    width = max((len(r[0]) for r in rows), default=10)
+    print(f"{system.name}: {system.n} unknowns ({int(system.differential.sum())} states), "
+          f"{len(system.aliases)} eliminated, {len(system.observed)} outputs; units SI")
+    for name, unit, kind, desc in rows:
+        print(f"{name:{width}s}  [{unit}]  {kind}{'  ' + desc if desc else ''}")
+    return 0
+
+
+def cmd_graph(args) -> int:
+    from .plotting import draw_circuit
+    target = _target(args)
+    fmt = args.format or os.path.splitext(args.out)[1].lstrip(".").lower() or "png"
+    if fmt not in ("png", "svg", "dot"):
+        raise PvgraphError(f"--format {fmt!r}: choose png, svg or dot (or name the output "
+                           f"file .png, .svg or .dot)")
+    out = draw_circuit(target.circuit(), args.out, fmt=fmt)
+    print(f"wrote {out}")
+    return 0
+
+
+def cmd_export(args) -> int:
+    target = _target(args)
+    circuit = target.circuit()
+    if args.out.endswith(".fmu"):
+        from .fmi import export_fmu
+        path = export_fmu(circuit, args.out, outputs=args.var or list(target.variables),
+                          inputs=args.input or [], parameters=args.parameter or [])
+    else:
+        from .modelfile import save
+        path = save(circuit, args.out)
+    print(f"wrote {path}")
     return 0
 
 
@@ -173,51 +341,23 @@ def cmd_components(args) -> int:
     return 0
 
 
-def cmd_graph(args) -> int:
-    from .plotting import draw_circuit
-    from circuits.rig import build_rig
-    from circuits.pvg32.modules import build_pve, build_pvb, build_pvg32, build_pvp
-    builders = {"rig": build_rig, "pvg32": build_pvg32, "pvp": build_pvp, "pvb": build_pvb,
-                "pve": build_pve}
-    if args.circuit not in builders:
-        raise PvgraphError(f"unknown circuit {args.circuit!r}; choose one of {sorted(builders)}")
-    circuit = builders[args.circuit]()
-    out = draw_circuit(circuit, args.out, fmt=args.format)
-    print(f"wrote {out}")
+def cmd_circuits(args) -> int:
+    entries = registry.load().circuits
+    if not entries:
+        print("no registered circuits; give FILE.py:FUNCTION, MODULE:FUNCTION or a model file")
+        return 0
+    groups: dict[str, list] = {}
+    for e in entries.values():
+        groups.setdefault(e.group or "other", []).append(e)
+    for group, members in groups.items():
+        print(f"{group}:")
+        for e in members:
+            print(f"  {e.name:12s} {e.description}")
     return 0
 
 
 # --------------------------------------------------------------------------------------------
-# pvgraph sweep: rig parameters over a scenario
-
-#: the scenario-level parameter a sweep can vary besides the dotted PVG32Params paths
-SCENARIO_PARAMS = {"U_input": "PVE control voltage U_in [V] (overrides the scenario's)"}
-#: rig outputs of one sweep case: name -> (SI unit, table unit, converter from SI, heading)
-RIG_OUTPUTS = {
-    "Q_total": ("m^3/s", "L/min", to_lpm, "Q_total"),
-    "Q_branch": ("m^3/s", "L/min", to_lpm, "Q_branch"),
-    "Pf": ("Pa", "bar", to_bar, "Pf"),
-    "Pm": ("Pa", "bar", to_bar, "Pm"),
-    "Pb": ("Pa", "bar", to_bar, "Pb"),
-    "pump_margin": ("Pa", "bar", to_bar, "pump margin"),
-    "main_spool_drop": ("Pa", "bar", to_bar, "spool drop"),
-    "main_spool_x": ("m", "mm", to_mm, "x_main"),
-    "pump_relief_flow": ("m^3/s", "L/min", to_lpm, "Q_relief"),
-    "settled": ("-", "", float, "settled"),
-    "settle_deviation": ("Pa", "bar", to_bar, "settle dev"),
-    "steps": ("-", "", float, "steps"),
-}
-TABLE_OUTPUTS = ("Q_total", "Pf", "Pm", "Pb", "pump_margin", "main_spool_x")
-
-
-def _sweepable(params) -> dict:
-    """``{name: (preset value or None, description)}`` of every parameter a sweep can vary."""
-    from circuits.pvg32.parameters import parameter_field, parameter_paths
-    out = {name: (None, desc) for name, desc in SCENARIO_PARAMS.items()}
-    for path in parameter_paths(params):
-        out[path] = parameter_field(params, path)
-    return out
-
+# sweep
 
 def _check_param_name(name: str, valid) -> None:
     if name in valid:
@@ -232,51 +372,34 @@ def _check_param_name(name: str, valid) -> None:
                        f"dotted PVG32Params fields; list them with pvgraph sweep --list-params")
 
 
-def _rig_case(*, scenario: str, preset: str, law: str, settle: float, after: float,
-              **params) -> dict:
-    """One sweep case: a lab scenario on the rig with some parameters changed (SI outputs)."""
-    from pydantic import ValidationError
-
-    from circuits import validation as V
-    from circuits.pvg32.parameters import with_values
-    from circuits.scenarios import Scenario, get_scenario
-
-    params = dict(params)
-    s = get_scenario(params.pop("scenario", scenario))
-    if "U_input" in params:
-        u = params.pop("U_input")
-        try:
-            s = Scenario.model_validate({**dict(s), "U_input": u})
-        except ValidationError as exc:
-            raise ParameterError(f"U_input = {u!r}: {exc.errors()[0]['msg']}") from None
-    p = with_values(_preset(preset), params)
-    r = V.run_scenario(s, p, law=law, settle=settle, after=after)
-    return {**r.simulated, **r.margins, "settled": float(r.settled),
-            "settle_deviation": r.settle_deviation, "steps": float(r.steps)}
-
-
-def _parse_number(text: str, name: str) -> float:
+def _parse_number(text: str, name: str, unit: str | None = None) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise PvgraphError(f"--param {name}: {text!r} is not a number") from None
+        if unit is None:
+            raise PvgraphError(f"--param {name}: {text!r} is not a number") from None
+        try:
+            value = float(to_unit(text.strip(), unit, name))
+        except ParameterError as exc:
+            raise PvgraphError(f"--param {name}: {exc}") from None
     if not math.isfinite(value):
         raise PvgraphError(f"--param {name}: {text!r} is not a finite number")
     return value
 
 
-def _parse_param(spec: str, random_mode: bool):
+def _parse_param(spec: str, random_mode: bool, units: dict | None = None):
     """``NAME=SPEC`` -> (name, grid values or random-sample range); see ``--param`` help."""
     import numpy as np
     name, eq, body = spec.partition("=")
     name = name.strip()
+    unit = (units or {}).get(name)
     if not eq or not name or not body.strip():
         raise PvgraphError(f"--param {spec!r}: write NAME=VALUE, NAME=LO:HI:N, NAME=V1,V2,... "
                            f"or (with --random) NAME=LO:HI")
     log = body.startswith("log:")
     parts = (body[4:] if log else body).split(":")
     if len(parts) == 1 and not log:
-        values = [_parse_number(v, name) for v in body.split(",")]
+        values = [_parse_number(v, name, unit) for v in body.split(",")]
         if random_mode and len(values) > 1:
             raise PvgraphError(f"--param {name}: with --random give a range LO:HI (or "
                                f"log:LO:HI) or one fixed value, not a list")
@@ -285,13 +408,13 @@ def _parse_param(spec: str, random_mode: bool):
         if len(parts) != 2:
             raise PvgraphError(f"--param {name}: with --random give a range LO:HI or "
                                f"log:LO:HI, not {body!r}")
-        lo, hi = (_parse_number(v, name) for v in parts)
+        lo, hi = (_parse_number(v, name, unit) for v in parts)
         return name, (("log", lo, hi) if log else (lo, hi))
     if len(parts) != 3:
         raise PvgraphError(f"--param {name}: a grid range needs the number of points, "
                            f"{'log:' if log else ''}LO:HI:N (or use --random N to sample "
                            f"LO:HI); got {body!r}")
-    lo, hi = (_parse_number(v, name) for v in parts[:2])
+    lo, hi = (_parse_number(v, name, unit) for v in parts[:2])
     try:
         n = int(parts[2])
     except ValueError:
@@ -305,107 +428,129 @@ def _parse_param(spec: str, random_mode: bool):
     return name, [float(v) for v in values]
 
 
-def _sweep_cases(args, valid) -> list[dict]:
+def _sweep_cases(args, valid, prefix: dict | None = None) -> list[dict]:
+    """Cases from ``--param`` (a grid, or ``--random N`` samples), crossed with ``prefix``."""
     from .analysis.sweep import grid, random_sample
+    units = {name: declared_unit(desc) for name, (_, desc) in valid.items()}
     specs = {}
     for spec in args.param or []:
-        name, values = _parse_param(spec, args.random is not None)
+        name, values = _parse_param(spec, args.random is not None, units)
         _check_param_name(name, valid)
         if name in specs:
             raise PvgraphError(f"--param {name!r} is given twice")
         specs[name] = values
+    if not specs and not prefix:
+        raise PvgraphError("give at least one --param NAME=SPEC (list the names with "
+                           "pvgraph sweep TARGET --list-params)")
     if args.random is not None:
         if args.random < 1:
             raise PvgraphError(f"--random N needs N >= 1, got {args.random}")
         if not any(isinstance(v, tuple) for v in specs.values()):
             raise PvgraphError("--random needs at least one --param NAME=LO:HI range")
         samples = random_sample(specs, args.random, seed=args.seed, method=args.method)
-        cases = [{"scenario": s, **c} for s in args.scenario for c in samples]
-    else:
-        cases = grid({"scenario": args.scenario, **specs})
-    if len(args.scenario) == 1:
-        for c in cases:
-            del c["scenario"]
-    return cases
+        outer = grid(prefix) if prefix else [{}]
+        return [{**o, **c} for o in outer for c in samples]
+    return grid({**(prefix or {}), **specs})
 
 
-def _format_sweep_table(result) -> str:
-    params = result.param_names
-    heads = [f"{RIG_OUTPUTS[n][3]} [{RIG_OUTPUTS[n][1]}]" for n in TABLE_OUTPUTS]
-    widths = [max(len(p), 10) for p in params] + [max(len(h), 9) for h in heads]
-    head = f"{'case':>4s}  " + "  ".join(f"{h:>{w}s}" for h, w in zip(params + heads, widths)) \
-        + "  settled"
-    lines = [head, "-" * len(head)]
-    for r in result:
-        cells = [f"{r.params[p]:>{w}.6g}" if isinstance(r.params[p], float) else
-                 f"{str(r.params[p]):>{w}s}" for p, w in zip(params, widths)]
-        if r.ok:
-            cells += [f"{RIG_OUTPUTS[n][2](r.outputs[n]):>{w}.3f}"
-                      for n, w in zip(TABLE_OUTPUTS, widths[len(params):])]
-            tail = "yes" if r.outputs.get("settled") else "NO"
-        else:
-            tail = "FAILED: " + " ".join(r.error.split())[:100]
-        lines.append(f"{r.index:>4d}  " + "  ".join(cells) + f"  {tail}")
-    return "\n".join(lines)
-
-
-def cmd_sweep(args) -> int:
-    from circuits.scenarios import scenario_names
-    from .analysis.sweep import sweep
-
-    params = _preset(args.preset)
-    valid = _sweepable(params)
-    if args.list_params:
-        for name, (value, desc) in valid.items():
-            shown = "(scenario)" if name in SCENARIO_PARAMS else f"{value!r}"
-            print(f"{name:45s} {shown:>24s}  {desc.split('. ')[0][:90]}")
-        return 0
-    if not args.scenario:
-        raise PvgraphError("give at least one --scenario (e.g. --scenario test-9); valid: "
-                           f"{', '.join(scenario_names())}")
-    unknown = [n for n in args.scenario if n not in scenario_names()]
-    if unknown:
-        raise PvgraphError(f"unknown scenario(s) {unknown}; valid: {', '.join(scenario_names())}")
-    if args.settle <= 0:
-        raise PvgraphError(f"--settle must be > 0 s, got {args.settle}")
+def run_sweep(args, run, cases, units, check):
+    """Run a sweep with the command's backend options; ``(result, backend)``, or
+    ``(None, backend)`` after Ctrl-C (what finished is kept in ``--out``)."""
+    from .analysis.sweep import SweepInterrupted, sweep
     if args.workers is not None and args.workers < 1:
         raise PvgraphError(f"--workers must be >= 1, got {args.workers}")
+    if args.timeout is not None and not args.timeout > 0:
+        raise PvgraphError(f"--timeout must be > 0 s, got {args.timeout}")
     backend = args.backend or ("dask" if args.scheduler else "process")
     if args.scheduler and backend != "dask":
         raise PvgraphError("--scheduler is the address of a Dask scheduler; it needs "
                            "--backend dask")
+    try:
+        result = sweep(run, cases, backend=backend, workers=args.workers, client=args.scheduler,
+                       progress=True, units=units, out=args.out, resume=args.resume,
+                       timeout=args.timeout, check=check)
+    except SweepInterrupted as exc:
+        done = exc.result
+        print(f"\ninterrupted: {len(done.records)} of {done.n_cases} cases finished and kept "
+              f"in {args.out}; run the same command with --resume to finish", file=sys.stderr)
+        return None, backend
+    return result, backend
+
+
+def _target_case(*, target: str, options: dict, t_end: float, outputs: tuple, rtol: float,
+                 **params) -> dict:
+    """One sweep case of a circuit target: set the parameters, simulate, final values (SI)."""
+    from .simulate import simulate
+    circuit = load_target(target, options).circuit()
+    circuit.set_parameters(params)
+    system = circuit.compile()
+    names = check_names(system, outputs, _aliases(circuit))
+    sol = simulate(system, t_end, rtol=rtol)
+    return {label: sol.final(n) for label, n in zip(outputs, names)}
+
+
+def _check_target_case(circuit, case: dict) -> None:
+    circuit.check_parameters(case)
+
+
+def cmd_sweep(args) -> int:
+    if args.target is None:
+        handler = [e.run for e in registry.load().extensions.get("sweep", []) if e.run]
+        if not handler:
+            raise PvgraphError("give a circuit: pvgraph sweep my_rig.py:build --param "
+                               "orifice.A=1e-6:4e-6:4 --var node.port.p")
+        return handler[0](args)
+    target = _target(args)
+    circuit = target.circuit()
+    valid = circuit.parameters()
+    if getattr(args, "list_params", False):
+        for name, (value, desc) in valid.items():
+            print(f"{name:40s} {value!r:>24}  {desc[:90]}")
+        return 0
+    system = circuit.compile()
+    outputs = tuple(args.var or target.variables or _default_variables(system))
+    check_names(system, outputs, _aliases(circuit))
+    t_end = args.t_end if args.t_end is not None else (target.t_end or DEFAULT_T_END)
     cases = _sweep_cases(args, valid)
-    run = functools.partial(_rig_case, scenario=args.scenario[0], preset=args.preset,
-                            law=args.law, settle=args.settle, after=args.after)
-    units = {n: u[0] for n, u in RIG_OUTPUTS.items()}
-    result = sweep(run, cases, backend=backend, workers=args.workers, client=args.scheduler,
-                   progress=True, units=units)
-    csv_path, json_path = result.save(args.out)
-    print(f"PVG 32 rig sweep: {', '.join(args.scenario)}, preset '{args.preset}', {args.law} "
-          f"load, settle {args.settle:g} s; {len(result)} cases on {backend}, "
+    run = functools.partial(_target_case, target=args.target, options=target.options,
+                            t_end=t_end, outputs=outputs, rtol=args.rtol)
+    units = {n: system.unit(r) for n, r in zip(outputs, check_names(system, outputs,
+                                                                       _aliases(circuit)))}
+    result, backend = run_sweep(args, run, cases, units,
+                                functools.partial(_check_target_case, circuit))
+    if result is None:
+        return 130
+    print(f"{target.spec}: {len(result)} cases on {backend}, t_end {t_end:g} s, "
           f"{result.wall_time:.1f} s wall\n")
-    print(_format_sweep_table(result))
-    print(f"\n{len(result.ok)} ok, {len(result.failed)} failed; wrote {csv_path} and {json_path}")
-    if result.failed:
-        for r in result.failed:
-            print(f"case {r.index} {r.params} failed: {r.error}", file=sys.stderr)
-        return 1
-    return 0
+    print(_format_table(result, units, args.si))
+    print(f"\n{len(result.ok)} ok, {len(result.failed)} not ok; wrote {result.files[0]} and "
+          f"{result.files[1]} (SI)")
+    for r in result.failed:
+        print(f"case {r.index} {r.params} {r.status}: {r.error}", file=sys.stderr)
+    return 1 if result.failed else 0
+
+
+def _format_table(result, units, si) -> str:
+    from .units import display
+    heads = list(result.param_names) + [f"{n} [{display(1.0, units.get(n, ''), si)[1]}]"
+                                        for n in result.output_names]
+    widths = [max(len(h), 10) for h in heads]
+    lines = ["case  " + "  ".join(f"{h:>{w}s}" for h, w in zip(heads, widths)) + "  status"]
+    lines.append("-" * len(lines[0]))
+    for r in result:
+        cells = [f"{r.params[p]:>{w}.6g}" if isinstance(r.params[p], float) else
+                 f"{str(r.params[p]):>{w}s}" for p, w in zip(result.param_names, widths)]
+        for n, w in zip(result.output_names, widths[len(result.param_names):]):
+            v = r.outputs.get(n)
+            cells.append(f"{display(v, units.get(n, ''), si)[0]:>{w}.6g}" if v is not None
+                         else f"{'-':>{w}s}")
+        status = r.status if r.ok else f"{r.status}: " + " ".join((r.error or "").split())[:80]
+        lines.append(f"{r.index:>4d}  " + "  ".join(cells) + f"  {status}")
+    return "\n".join(lines)
 
 
 # --------------------------------------------------------------------------------------------
-# pvgraph linearize: the rig's linear model at an operating point
-
-LINEARIZE_OUTPUTS = ["pvg.pvb.main_spool.flange.x", "load.f.port.p"]
-DEFAULT_VOLTAGE = 4.29  # [V] the test-9 operating point of examples/linearize_pvg32.py
-#: SI unit -> (converter, display unit) for the printed values
-_DISPLAY = {"Pa": (to_bar, "bar"), "m^3/s": (to_lpm, "L/min"), "m": (to_mm, "mm")}
-
-
-def _display(value: float, unit: str) -> str:
-    convert, shown = _DISPLAY.get(unit, (float, unit))
-    return f"{convert(value):.6g} {shown}"
-
+# linearize
 
 def _check_outputs(system, names) -> None:
     linear = list(system.index) + list(system.aliases)
@@ -418,7 +563,7 @@ def _check_outputs(system, names) -> None:
                                f"e.g. a port pressure or flow")
         close = difflib.get_close_matches(name, linear, n=3, cutoff=0.6)
         hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
-        raise PvgraphError(f"--output {name!r} is not a variable of the rig{hint} (the rig has "
+        raise PvgraphError(f"--output {name!r} is not a variable of the circuit{hint} (it has "
                            f"{len(linear)} variables, e.g. {', '.join(linear[:3])})")
 
 
@@ -431,178 +576,95 @@ def _frequency_response(lm, freq_hz, output: int, input: int = 0):
 
 def cmd_linearize(args) -> int:
     import numpy as np
-    from circuits.rig import build_rig, laminar_load, turbulent_load
-    from circuits.scenarios import get_scenario, scenario_names
+
     from .analysis import linearize_circuit, steady_state
 
-    p = _preset(args.preset)
-    outputs = args.output or list(LINEARIZE_OUTPUTS)
-    make = laminar_load if args.law == "laminar" else turbulent_load
-    if args.scenario is not None:
-        if args.scenario not in scenario_names():
-            raise PvgraphError(f"unknown scenario {args.scenario!r}; valid: "
-                               f"{', '.join(scenario_names())}")
-        s = get_scenario(args.scenario)
-        load_kw = dict(L1=s.orifice_L1 or "small", L3=s.orifice_L3, l2_open=s.l2_open_finally)
-        U0 = args.voltage if args.voltage is not None else s.U_input
-        where = f"scenario {s.name} (L2 {'open' if s.l2_open_finally else 'closed'})"
-    else:
-        load_kw = {}
-        U0 = args.voltage if args.voltage is not None else DEFAULT_VOLTAGE
-        where = "the default rig load (small L1/L3, L2 closed)"
-    if not (math.isfinite(U0) and 0.0 <= U0 <= p.rig.supply_voltage):
-        raise PvgraphError(f"--voltage {U0!r} V is outside 0 .. {p.rig.supply_voltage} V (the "
-                           f"PVE supply voltage of preset '{args.preset}')")
-
-    def build(u):  # a fresh load each time: a circuit instance joins one rig only
-        return build_rig(p, load=make(p, **load_kw), U_input=u["U"])
-
-    system = build({"U": U0}).compile()
+    if args.target is None:
+        handler = [e.run for e in registry.load().extensions.get("linearize", []) if e.run]
+        if not handler:
+            raise PvgraphError("give a circuit: pvgraph linearize my_rig.py:build --input "
+                               "pump.Q --output node.port.p")
+        return handler[0](args)
+    target = _target(args)
+    circuit = target.circuit()
+    if not args.input:
+        raise PvgraphError("give at least one --input PARAMETER (component.field, e.g. a "
+                           "source's value), the input of the linear model")
+    valid = circuit.parameters()
+    for name in args.input:
+        _check_param_name(name, valid)
+    u0 = {name: float(valid[name][0]) for name in args.input}
+    system = circuit.compile()
+    if not args.output:
+        raise PvgraphError("give at least one --output VARIABLE (see pvgraph vars)")
+    outputs = check_names(system, args.output, _aliases(circuit), "--output")
     _check_outputs(system, outputs)
+
+    def build(u):
+        c = target.circuit()
+        c.set_parameters(u)
+        return c
     try:
         op = steady_state(system)
-        lm = linearize_circuit(build, {"U": U0}, outputs, op=op)
+        lm = linearize_circuit(build, u0, outputs, op=op)
     except (InitializationError, SolverError) as exc:
-        print(f"pvgraph linearize: no operating point at U = {U0} V: {exc}", file=sys.stderr)
+        print(f"pvgraph linearize: no operating point of {target.spec}: {exc}", file=sys.stderr)
         return 1
     poles = lm.poles()
+    wns, zetas, _ = lm.damping()
+    print(f"{target.spec} linearised at {', '.join(f'{k} = {v:.6g}' for k, v in u0.items())} "
+          f"(SI); operating point ({op.method}, {op.iterations} iterations):")
+    for n in outputs:
+        print(f"  {n:40s} {_display(op[n], system.unit(n), args.si)}")
+    stable = bool(np.all(poles.real < 0))
+    print(f"{len(lm.state_names)} states, {'stable' if stable else 'NOT stable'}; poles:")
+    records = [{"real": float(s.real), "imag": float(s.imag), "natural_frequency": float(wn),
+                "damping_ratio": float(z) if wn > 0 else 1.0}
+               for s, wn, z in zip(poles, wns, zetas)]
+    for r in records[:args.poles]:
+        print(f"  {r['real']:12.5g} {r['imag']:+12.5g}  wn {r['natural_frequency']:.5g} rad/s  "
+              f"zeta {r['damping_ratio']:.3f}")
     try:
-        gain = lm.dc_gain()[:, 0]
+        gain = lm.dc_gain()
     except np.linalg.LinAlgError:
         gain = None
-    units = {n: system.unit(n) for n in outputs}
-    n_shown = min(args.poles, len(poles))
-
-    print(f"PVG 32 rig linearised at U = {U0:g} V on {where}, preset '{args.preset}', "
-          f"{args.law} load")
-    print(f"operating point ({op.method}, {op.iterations} iterations, scaled residual "
-          f"{op.residual_norm:.2g}):")
-    for n in outputs:
-        print(f"  {n:40s} {_display(op[n], units[n])}")
-    stable = bool(np.all(poles.real < 0))
-    print(f"{len(lm.state_names)} states, {'stable' if stable else 'NOT stable'}; "
-          f"{n_shown} dominant poles:")
-    print(f"  {'real [1/s]':>12s} {'imag [1/s]':>12s} {'wn [rad/s]':>11s} {'fn [Hz]':>9s} "
-          f"{'zeta':>7s}")
-    wns, zetas, _ = lm.damping()
-    records = [{"real": float(s_.real), "imag": float(s_.imag), "natural_frequency": float(wn),
-                # a pole at the origin: an integrator, reported as critically damped
-                "damping_ratio": float(zeta) if wn > 0 else 1.0}
-               for s_, wn, zeta in zip(poles, wns, zetas)]
-    for r in records[:n_shown]:
-        print(f"  {r['real']:12.5g} {r['imag']:+12.5g} {r['natural_frequency']:11.5g} "
-              f"{r['natural_frequency'] / (2 * math.pi):9.4g} {r['damping_ratio']:7.3f}")
-    if gain is None:
-        print("DC gain: not defined (A is singular: the linear model has a pure integrator)")
-    else:
-        print("DC gain per volt of U:")
-        for n, g in zip(outputs, gain):
-            print(f"  {n:40s} {_display(float(g), units[n])}/V")
-
+    if gain is not None:
+        print("DC gain (SI per SI unit of each input):")
+        for i, n in enumerate(outputs):
+            for j, u in enumerate(args.input):
+                print(f"  d {n} / d {u}: {gain[i, j]:.6g}")
     if args.json:
-        data = {"U": U0, "scenario": args.scenario, "preset": args.preset, "law": args.law,
-                "operating_point": {"method": op.method, "iterations": op.iterations,
-                                    "residual_norm": float(op.residual_norm),
-                                    "values": {n: op[n] for n in outputs}},
-                "units": units, "n_states": len(lm.state_names),
-                "state_names": list(lm.state_names), "stable": stable, "poles": records,
-                "dominant_poles": records[:n_shown],
-                "dc_gain": None if gain is None else {n: float(g) for n, g in zip(outputs, gain)},
-                "dc_gain_units": {n: f"{units[n]}/V" for n in outputs}}
-        _write_json_atomic(args.json, data)
-        print(f"wrote {args.json}")
-    if args.bode:
-        from .plotting import plot_bode
-        freq = np.logspace(-1, 3, 300)
-        mags, phases, labels = [], [], []
-        for k, n in enumerate(outputs):
-            convert, shown = _DISPLAY.get(units[n], (lambda v: v, units[n]))
-            h = convert(_frequency_response(lm, freq, k))
-            mags.append(20 * np.log10(np.maximum(np.abs(h), 1e-300)))
-            phases.append(np.degrees(np.unwrap(np.angle(h))))
-            labels.append(f"{n} [{shown}/V]")
-        path = plot_bode(freq, mags, phases, args.bode, labels=labels,
-                         title=f"PVG 32 rig: response per volt of U at U = {U0:g} V")
-        print(f"wrote {path}")
+        _write_json_atomic(args.json, {
+            "target": target.spec, "inputs": u0, "units": {n: system.unit(n) for n in outputs},
+            "operating_point": {n: op[n] for n in outputs}, "n_states": len(lm.state_names),
+            "stable": stable, "poles": records,
+            "dc_gain": None if gain is None else {n: {u: float(gain[i, j])
+                                                      for j, u in enumerate(args.input)}
+                                                  for i, n in enumerate(outputs)}})
+        print(f"wrote {args.json} (SI)")
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="pvgraph", description="Acausal hydraulic circuit modelling; the PVG 32 valve.")
-    sub = parser.add_subparsers(dest="command", required=True)
+# --------------------------------------------------------------------------------------------
+def _add_target(p, help_text="circuit: FILE.py:FUNCTION, MODULE:FUNCTION, a model file or a "
+                             "registered name (pvgraph circuits)", optional=False):
+    p.add_argument("target", nargs="?" if optional else None, help=help_text)
+    p.add_argument("--option", "-o", action="append", metavar="KEY=VALUE",
+                   help="keyword argument for the circuit's builder (repeatable; JSON values)")
 
-    v = sub.add_parser("validate", help="simulate the 19 lab scenarios and compare with the data")
-    v.add_argument("--out", default="pvgraph-report", help="output folder (default: %(default)s)")
-    v.add_argument("--json", help="write the comparison records here (default: OUT/validation.json)")
-    v.add_argument("--preset", default="tuned", help="parameter preset: tuned (report table 4.14) "
-                                                     "or initial (table 4.9)")
-    v.add_argument("--law", default="laminar", choices=["laminar", "turbulent"],
-                   help="load orifice law (report 4.7.2 concludes laminar)")
-    v.add_argument("--scenario", action="append", help="run only this scenario (repeatable)")
-    v.add_argument("--workers", type=int, default=None, help="parallel processes (default 2)")
-    v.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
-    v.add_argument("--calibrate", action="store_true",
-                   help="first fit the uncertain rig parameters to the lab's steady data "
-                        "(least squares with 95 %% intervals, about a minute), then validate "
-                        "with the estimates; writes OUT/calibration.json")
-    v.add_argument("--fit", action="append", metavar="PARAM",
-                   help="parameter to calibrate (repeatable; default: supply voltage, pump "
-                        "flow, return line and the four load constants)")
-    v.set_defaults(func=cmd_validate)
 
-    s = sub.add_parser("simulate", help="simulate one scenario (test-1 ... test-12, sweep-1 ...)")
-    s.add_argument("target", help="scenario name")
-    s.add_argument("--t-end", type=float, default=10.0, help="end time [s]")
-    s.add_argument("--t-switch", type=float, default=8.0, help="solenoid switching time [s]")
-    s.add_argument("--solver", default="pvgraph", choices=["pvgraph", "ida"])
-    s.add_argument("--rtol", type=float, default=1e-5)
-    s.add_argument("--preset", default="tuned")
-    s.add_argument("--law", default="laminar", choices=["laminar", "turbulent"])
-    s.add_argument("--var", action="append", help="variable to report (repeatable)")
-    s.add_argument("--csv", help="write the variables over time to this CSV file")
-    s.add_argument("--plot", help="plot the variables to this PNG file")
-    s.set_defaults(func=cmd_simulate)
-
-    c = sub.add_parser("components", help="list the component library")
-    c.set_defaults(func=cmd_components)
-
-    g = sub.add_parser("graph", help="draw a circuit (PNG via matplotlib, or Graphviz DOT)")
-    g.add_argument("circuit", help="rig, pvg32, pvp, pvb or pve")
-    g.add_argument("--out", default="circuit.png")
-    g.add_argument("--format", default="png", choices=["png", "dot"])
-    g.set_defaults(func=cmd_graph)
-
-    w = sub.add_parser(
-        "sweep", help="sweep rig parameters over lab scenarios (grid or random sample)",
-        description="Run lab scenarios of the PVG 32 rig for many parameter values, in "
-                    "parallel. Each case reports the steady simulated Q_total, Q_branch, Pf, "
-                    "Pm, Pb, the pump margin, main spool drop and position (SI in the files). "
-                    "Values are SI, as the parameter models define them. Exit code 1 when any "
-                    "case failed (the others are still written).")
-    w.add_argument("--scenario", action="append",
-                   help="lab scenario (test-1 ... test-12, sweep-1 ... sweep-7); repeat to sweep "
-                        "over several")
+def _add_sweep_backend(w) -> None:
     w.add_argument("--param", action="append", metavar="NAME=SPEC",
-                   help="parameter to vary: U_input or a dotted PVG32Params field (e.g. "
-                        "rig.return_line_K, pve.input_gain). SPEC: LO:HI:N (N points), "
-                        "log:LO:HI:N (log-spaced), V1,V2,... or a fixed V; with --random: "
-                        "LO:HI, log:LO:HI or a fixed V. Repeatable: the grid is the product")
+                   help="parameter to vary (component.field, e.g. orifice.A). SPEC: LO:HI:N "
+                        "(N points), log:LO:HI:N (log-spaced), V1,V2,... or a fixed V; with "
+                        "--random: LO:HI, log:LO:HI or a fixed V. SI numbers, or quantities "
+                        "with units (\"2 mm^2,3 mm^2\"). Repeatable: the grid is the product")
     w.add_argument("--random", type=int, metavar="N",
                    help="draw N random cases from the LO:HI ranges instead of a grid")
     w.add_argument("--seed", type=int, default=None, help="random seed (with --random)")
     w.add_argument("--method", default="lhs", choices=["lhs", "uniform"],
                    help="random sampling: Latin hypercube or independent uniform "
                         "(default: %(default)s)")
-    w.add_argument("--settle", "--t-end", dest="settle", type=float, default=8.0,
-                   help="simulated time to the steady state (before the solenoid step of "
-                        "step tests) [s] (default: %(default)s, as pvgraph validate)")
-    w.add_argument("--after", type=float, default=2.0,
-                   help="simulated time after the solenoid step of step tests [s] "
-                        "(default: %(default)s)")
-    w.add_argument("--preset", default="tuned", help="parameter preset: tuned or initial")
-    w.add_argument("--law", default="laminar", choices=["laminar", "turbulent"],
-                   help="load orifice law")
     w.add_argument("--backend", choices=["process", "serial", "dask"],
                    help="process pool (default), serial, or Dask (default with --scheduler)")
     w.add_argument("--workers", type=int, default=None,
@@ -611,44 +673,133 @@ def build_parser() -> argparse.ArgumentParser:
                    help="Dask scheduler address, e.g. tcp://10.0.0.5:8786 (its workers need "
                         "pvgraph installed); without it --backend dask starts a local cluster")
     w.add_argument("--out", default="pvgraph-sweep",
-                   help="output folder for sweep.csv and sweep.json (default: %(default)s)")
+                   help="output folder: cases.jsonl (each case as it finishes), sweep.csv and "
+                        "sweep.json (default: %(default)s)")
+    w.add_argument("--resume", action="store_true",
+                   help="keep the finished cases recorded in OUT/cases.jsonl and run the rest")
+    w.add_argument("--timeout", type=float, metavar="SECONDS",
+                   help="stop a case after this wall time and record it as timed out")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="pvgraph", description="Acausal hydraulic circuit modelling: simulate, inspect, "
+                                    "sweep and linearise any circuit.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    parsers = {}
+
+    s = parsers["simulate"] = sub.add_parser(
+        "simulate", help="simulate a circuit and print final values")
+    _add_target(s)
+    s.add_argument("--t-end", type=float, default=None,
+                   help=f"end time [s] (default: the circuit's, else {DEFAULT_T_END:g})")
+    s.add_argument("--solver", default="pvgraph", choices=["pvgraph", "ida"])
+    s.add_argument("--rtol", type=float, default=1e-5)
+    s.add_argument("--var", action="append", help="variable to report (repeatable; names: "
+                                                  "pvgraph vars TARGET)")
+    s.add_argument("--csv", help="write the variables over time to this CSV file (SI)")
+    s.add_argument("--plot", help="plot the variables to this PNG or SVG file")
+    s.add_argument("--si", action="store_true", help="print SI units (default: bar, L/min, mm)")
+    s.set_defaults(func=cmd_simulate)
+
+    v = parsers["vars"] = sub.add_parser(
+        "vars", help="list every variable and output of a circuit with unit and description")
+    _add_target(v)
+    v.add_argument("--grep", help="only names containing this text")
+    v.set_defaults(func=cmd_vars)
+
+    g = parsers["graph"] = sub.add_parser(
+        "graph", help="draw a circuit as a layered schematic (PNG, SVG or Graphviz DOT)")
+    _add_target(g)
+    g.add_argument("--out", default="circuit.png", help="output file (default: %(default)s)")
+    g.add_argument("--format", choices=["png", "svg", "dot"],
+                   help="default: from the extension of --out")
+    g.set_defaults(func=cmd_graph)
+
+    e = parsers["export"] = sub.add_parser(
+        "export", help="save a circuit as a model file (.toml, .json) or an FMU (.fmu)")
+    _add_target(e)
+    e.add_argument("--out", required=True, help="FILE.toml, FILE.json or FILE.fmu")
+    e.add_argument("--var", action="append", help="FMU output variable (repeatable)")
+    e.add_argument("--input", action="append", metavar="PARAM",
+                   help="FMU input: a component.field parameter set between steps (repeatable)")
+    e.add_argument("--parameter", action="append", metavar="PARAM",
+                   help="FMU parameter: a component.field set before the run (repeatable)")
+    e.set_defaults(func=cmd_export)
+
+    w = parsers["sweep"] = sub.add_parser(
+        "sweep", help="run a circuit for many parameter values (grid or random sample)",
+        description="Simulate a circuit for many parameter values, in parallel, and record the "
+                    "final value of each --var per case. Each case is appended to "
+                    "OUT/cases.jsonl as it finishes; Ctrl-C stops cleanly and --resume runs "
+                    "the rest. Invalid parameter values fail before any case runs (exit 2); "
+                    "exit 1 when a case failed, timed out or gave a non-finite output.")
+    _add_target(w, optional=True)
+    w.add_argument("--var", action="append", help="output variable (repeatable)")
+    w.add_argument("--t-end", type=float, default=None, help="simulated time per case [s]")
+    w.add_argument("--rtol", type=float, default=1e-5)
+    w.add_argument("--si", action="store_true", help="print SI units in the table")
     w.add_argument("--list-params", action="store_true",
-                   help="list the parameter names with their preset values and exit")
+                   help="list the parameter names with their values and exit")
+    _add_sweep_backend(w)
     w.set_defaults(func=cmd_sweep)
 
-    lz = sub.add_parser(
-        "linearize", help="linear model of the rig at a steady operating point",
-        description="Linearise the PVG 32 rig at the steady state of a scenario or a PVE "
-                    "input voltage: input U (the PVE control voltage), outputs by default the "
-                    "main spool position and the load pressure. Prints the operating point, "
-                    "the dominant poles (natural frequency, damping ratio) and the DC gains.")
-    lz.add_argument("--scenario", help="take the load and the voltage of this lab scenario "
-                                       "(L2 in its final state)")
-    lz.add_argument("--voltage", type=float,
-                    help=f"PVE input voltage U [V] (default: the scenario's, else "
-                         f"{DEFAULT_VOLTAGE})")
+    lz = parsers["linearize"] = sub.add_parser(
+        "linearize", help="linear model of a circuit at its steady operating point",
+        description="Linearise a circuit at its steady state: inputs are parameters "
+                    "(--input component.field), outputs variables (--output). Prints the "
+                    "operating point, the dominant poles (natural frequency, damping ratio) "
+                    "and the DC gains.")
+    _add_target(lz, optional=True)
+    lz.add_argument("--input", action="append", metavar="PARAM",
+                    help="input parameter, component.field (repeatable)")
     lz.add_argument("--output", action="append", metavar="NAME",
-                    help=f"output variable (repeatable; default: {', '.join(LINEARIZE_OUTPUTS)})")
-    lz.add_argument("--preset", default="tuned", help="parameter preset: tuned or initial")
-    lz.add_argument("--law", default="laminar", choices=["laminar", "turbulent"],
-                    help="load orifice law")
+                    help="output variable (repeatable)")
     lz.add_argument("--poles", type=int, default=6, help="dominant poles to print "
                                                          "(default: %(default)s)")
     lz.add_argument("--json", help="write operating point, poles and DC gains to this file")
     lz.add_argument("--bode", metavar="PNG", help="draw the Bode plot of every output to this "
                                                   "PNG file")
+    lz.add_argument("--si", action="store_true", help="print SI units")
     lz.set_defaults(func=cmd_linearize)
+
+    c = sub.add_parser("components", help="list the component library")
+    c.set_defaults(func=cmd_components)
+    r = sub.add_parser("circuits", help="list the circuits applications registered")
+    r.set_defaults(func=cmd_circuits)
+
+    reg = registry.load()
+    for name, ext_list in reg.extensions.items():
+        if name in parsers:
+            for ext in ext_list:
+                ext.configure(parsers[name])
+    for name, entry in reg.commands.items():
+        if name in parsers or name in ("components", "circuits"):
+            continue
+        p = sub.add_parser(name, help=entry.help, description=entry.description or None)
+        entry.configure(p)
+        p.set_defaults(func=entry.run)
     return parser
 
 
 def main(argv=None) -> int:
-    parser = build_parser()
+    try:
+        parser = build_parser()
+    except PvgraphError as exc:
+        print(f"pvgraph: error: {exc}", file=sys.stderr)
+        return 2
     args = parser.parse_args(argv)
     try:
         return args.func(args)
     except PvgraphError as exc:
         print(f"pvgraph {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"pvgraph {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:          # the output went to a reader that stopped (| head)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":

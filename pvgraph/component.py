@@ -31,7 +31,7 @@ import types
 from dataclasses import dataclass, field
 from typing import Any, Callable, ClassVar
 
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
 from . import expr as E
 from .errors import CircuitError, ParameterError
@@ -116,9 +116,88 @@ class Variable:
 
 
 class Params(BaseModel):
-    """Base of parameter models: frozen, no unknown fields, finite numbers only."""
+    """Base of parameter models: frozen, no unknown fields, finite numbers only.
+
+    A number is SI (or whatever unit the field declares in brackets in its description). A
+    quantity with a unit, ``"150 bar"``, ``"0.5 L"``, ``"10 L/min"`` or a pint Quantity, is
+    converted to the declared unit; a quantity of another dimension, a bool, or a magnitude
+    no computation survives (below 1e-300 or above 1e300) is refused, naming the field.
+    """
 
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _quantities(cls, value, info):
+        if type(value) is float:                     # the common case: an SI number
+            if value != 0.0 and not _PARAM_TINY <= abs(value) <= _PARAM_HUGE and \
+                    math.isfinite(value):
+                return _param_number(value, _field_unit(cls, info.field_name)[1],
+                                     info.field_name)
+            return value
+        name = info.field_name
+        takes_float, unit = _field_unit(cls, name)
+        if not takes_float:
+            return value
+        if isinstance(value, (list, tuple)):
+            if all(type(v) is float and (v == 0.0 or _PARAM_TINY <= abs(v) <= _PARAM_HUGE)
+                   for v in value):
+                return value
+            return type(value)(_param_number(v, unit, f"{name}[{k}]") for k, v in enumerate(value))
+        if hasattr(value, "magnitude") and not isinstance(value, (int, float)) and \
+                getattr(getattr(value, "magnitude", None), "ndim", 0) == 1:
+            return tuple(_param_number(v, unit, f"{name}[{k}]") for k, v in enumerate(value))
+        return _param_number(value, unit, name)
+
+
+_FIELD_UNITS: dict = {}
+
+
+def _field_unit(cls, name) -> tuple[bool, str | None]:
+    """(the field takes floats, the unit its description declares), cached per class."""
+    key = (cls, name)
+    if key not in _FIELD_UNITS:
+        from .units import declared_unit
+        info = cls.model_fields.get(name)
+        _FIELD_UNITS[key] = (info is not None and _takes_float(info.annotation),
+                             declared_unit(info.description) if info is not None else None)
+    return _FIELD_UNITS[key]
+
+
+#: [-] magnitudes outside this range overflow or underflow in the compiled equations
+_PARAM_TINY, _PARAM_HUGE = 1e-300, 1e300
+
+
+def _takes_float(annotation) -> bool:
+    """True when a field's annotation admits floats (float, float | None, tuple[float, ...])."""
+    if annotation is float:
+        return True
+    return any(_takes_float(a) for a in getattr(annotation, "__args__", ()) if a is not Ellipsis)
+
+
+def _param_number(value, unit, name):
+    if isinstance(value, bool):
+        raise ValueError(f"{value!r} is a bool, not a number{f' [{unit}]' if unit else ''}")
+    if isinstance(value, str) or hasattr(value, "dimensionality"):
+        if unit is None and not (isinstance(value, str) and _is_plain_number(value)):
+            raise ValueError(f"{value!r}: {name} declares no unit to convert to; give a plain "
+                             f"number")
+        from .units import to_unit
+        value = to_unit(value, unit or "1", name)
+    if isinstance(value, (int, float)) and math.isfinite(value) and value != 0 and \
+            not _PARAM_TINY <= abs(value) <= _PARAM_HUGE:
+        raise ValueError(f"{value!r} is outside the magnitudes a model can compute with "
+                         f"({_PARAM_TINY:g} .. {_PARAM_HUGE:g}); check its unit"
+                         f"{f' [{unit}]' if unit else ''}")
+    return value
+
+
+def _is_plain_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 class NoParams(Params):
@@ -483,7 +562,8 @@ def _describe_validation(where: str, exc: ValidationError, fields=()) -> str:
             lines.append(f"  {loc} = {err.get('input')!r}: not a parameter of {where}; it accepts "
                          f"{', '.join(fields)}")
         else:
-            lines.append(f"  {loc} = {err.get('input')!r}: {err['msg']}")
+            msg = err["msg"].removeprefix("Value error, ")
+            lines.append(f"  {loc} = {err.get('input')!r}: {msg}")
     return f"invalid parameters for {where}:\n" + "\n".join(lines)
 
 

@@ -1,7 +1,7 @@
-"""Plots with matplotlib: time series by name, the PVG 32 validation figures, circuit drawings.
+"""Plots with matplotlib: time series by name, Bode and step responses, circuit drawings.
 
-All functions write a PNG and return its path; they use the non-interactive Agg backend so they
-work on machines without a screen.
+All functions write a PNG (or SVG, by the file's extension) and return its path; they use the
+non-interactive Agg backend so they work on machines without a screen.
 """
 
 from __future__ import annotations
@@ -14,12 +14,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .units import to_bar, to_lpm, to_mm  # noqa: E402
+from .units import display  # noqa: E402
 
-__all__ = ["plot_solution", "plot_flow_vs_voltage", "plot_step_traces", "draw_circuit",
-           "plot_bode", "plot_step_response", "plot_opening_areas"]
+__all__ = ["plot_solution", "draw_circuit", "plot_bode", "plot_step_response",
+           "plot_opening_areas"]
 
-_SCALES = {"Pa": (to_bar, "bar"), "m^3/s": (to_lpm, "L/min"), "m": (to_mm, "mm")}
 
 
 def _save(fig, path):
@@ -31,17 +30,17 @@ def _save(fig, path):
     return path
 
 
-def plot_solution(sol, names, path, *, title=None):
-    """One panel per unit: the named variables over time, in engineering units."""
+def plot_solution(sol, names, path, *, title=None, si=False):
+    """One panel per unit: the named variables over time, in bar, L/min, mm (SI if ``si``)."""
     groups: dict[str, list[str]] = {}
     for n in names:
         groups.setdefault(sol.unit(n), []).append(n)
     fig, axes = plt.subplots(len(groups), 1, figsize=(8, 2.6 * len(groups)), sharex=True,
                              squeeze=False)
     for ax, (unit, members) in zip(axes[:, 0], groups.items()):
-        conv, label = _SCALES.get(unit, (lambda v: v, unit))
+        label = display(1.0, unit, si)[1]
         for n in members:
-            ax.plot(sol.t, conv(sol[n]), label=n)
+            ax.plot(sol.t, display(sol[n], unit, si)[0], label=n)
         ax.set_ylabel(f"[{label}]")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, loc="best")
@@ -51,118 +50,183 @@ def plot_solution(sol, names, path, *, title=None):
     return _save(fig, path)
 
 
-def plot_flow_vs_voltage(results, path):
-    """Steady total flow against the input voltage, measured and simulated (report fig. 4.39)."""
-    fig, ax = plt.subplots(figsize=(7, 4.2))
-    for kind, marker, label in (("voltage_sweep", "o", "voltage sweep"),
-                                ("solenoid_step", "s", "solenoid-step tests")):
-        rs = [r for r in results if r.scenario.kind == kind and not r.error]
-        if not rs:
-            continue
-        u = [r.scenario.U_input for r in rs]
-        ax.plot(u, [to_lpm(r.scenario.measured.Q_total) for r in rs], marker, mfc="none",
-                color="C0", label=f"measured, {label}")
-        ax.plot(u, [to_lpm(r.simulated["Q_total"]) for r in rs], marker, ms=4, color="C3",
-                label=f"pvgraph, {label}")
-    ax.set_xlabel("PVE input voltage U [V]")
-    ax.set_ylabel("total flow Q_v [L/min]")
-    ax.set_title("PVG 32 steady flow vs input voltage (cf. report fig. 4.39)")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7)
-    return _save(fig, path)
+#: how each domain's connections are drawn: (matplotlib colour, line style, DOT attributes)
+_DOMAIN_STYLE = {
+    "hydraulic": ("C0", "-", 'color="#1f77b4", penwidth=1.6'),
+    "mechanical": ("0.3", "--", 'color="gray30", style=dashed'),
+    "signal": ("C2", ":", 'color="#2ca02c", style=dotted'),
+}
 
 
-def plot_step_traces(results, path):
-    """Pressure drop over L3 after the solenoid step, 8 dynamic tests (report fig. 4.48)."""
-    rs = [r for r in results if r.scenario.solenoid_event in ("opening", "closing")
-          and not r.error]
-    if not rs:
-        fig, ax = plt.subplots()
-        ax.text(0.5, 0.5, "no solenoid-step scenario in this run", ha="center")
-        return _save(fig, path)
-    cols = 2
-    rows = int(np.ceil(len(rs) / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(9, 2.2 * rows), sharex=True, squeeze=False)
-    for ax, r in zip(axes.flat, rs):
-        s = r.scenario
-        ax.plot(r.trace_t, to_bar(r.trace_dp_L3), color="C3", label="pvgraph Pf - Pb")
-        ax.axhline(to_bar(s.measured.Pf - s.measured.Pb), color="C0", ls="--",
-                   label="measured steady Pf - Pb")
-        ax.set_title(f"{r.name}: L2 {s.solenoid_event}, U = {s.U_input} V", fontsize=9)
-        ax.set_ylim(0, 80)
-        ax.grid(True, alpha=0.3)
-    for ax in axes.flat[len(rs):]:
-        ax.axis("off")
-    axes.flat[0].legend(fontsize=7)
-    for ax in axes[-1]:
-        ax.set_xlabel("time after the step [s]")
-    for ax in axes[:, 0]:
-        ax.set_ylabel("[bar]")
-    fig.suptitle("Pressure drop over L3 after the solenoid step (cf. report fig. 4.48)",
-                 fontsize=10)
-    return _save(fig, path)
+def _schematic(circuit):
+    """Components, junctions and domain-tagged edges of a circuit, and its sub-circuit groups.
 
+    Returns ``(nodes, edges, groups)``: nodes ``{id: (label, kind, group)}`` (kind is the class
+    name, or ``"junction"``), edges ``[(a, b, domain)]``, groups in depth-first order.
+    """
+    from .circuit import Circuit, _leaf_port, _leaves
 
-def draw_circuit(circuit, path, *, fmt="png"):
-    """Draw a circuit's components and connections (networkx + matplotlib, or Graphviz DOT)."""
-    import networkx as nx
+    nodes, edges, groups = {}, [], [""]
+    path_of = {}
+    for path, comp in _leaves(circuit):
+        group = path.rpartition(".")[0]
+        nodes[path] = (path.rpartition(".")[2], type(comp).__name__, group)
+        path_of[id(comp)] = path
 
-    from .compiler import _flatten
-
-    leaves = _flatten(circuit)
-    graph = nx.Graph()
-    for p, comp in leaves:
-        graph.add_node(p, kind=type(comp).__name__)
-    node_of = {}
-    for p, comp in leaves:
-        for port in comp.ports:
-            node_of[(id(comp), port)] = p
-
-    def walk(c, prefix):
-        for refs in c._connections:
+    def walk(node, prefix):
+        for k, refs in enumerate(node._connections):
             ends = []
             for r in refs:
-                ends.extend(_leaf_ports(r))
-            owners = [node_of[(id(o), n)] for o, n in ends if (id(o), n) in node_of]
-            for a, b in zip(owners, owners[1:]):
-                graph.add_edge(a, b)
-        for child in c._components.values():
-            if hasattr(child, "_connections"):
-                walk(child, prefix)
-
+                owner, _ = _leaf_port(r)
+                ends.append(path_of[id(owner)])
+            domain = refs[0].port.domain.name
+            if len(set(ends)) > 2:
+                junction = f"{prefix}#{k}"
+                nodes[junction] = ("", "junction", prefix.rstrip("."))
+                edges.extend((e, junction, domain) for e in dict.fromkeys(ends))
+            elif len(set(ends)) == 2:
+                edges.append((ends[0], ends[1], domain))
+        for name, child in node._components.items():
+            if isinstance(child, Circuit):
+                groups.append(f"{prefix}{name}")
+                walk(child, f"{prefix}{name}.")
     walk(circuit, "")
+    return nodes, edges, groups
+
+
+def _layered_positions(nodes, edges, groups):
+    """``{node: (x, y)}``: x the BFS layer along the connections, y within bands per group."""
+    import networkx as nx
+
+    g = nx.Graph()
+    g.add_nodes_from(nodes)
+    g.add_edges_from((a, b) for a, b, _ in edges)
+    glob = {}
+    for part in nx.connected_components(g):
+        start = next(n for n in nodes if n in part)
+        glob.update(nx.single_source_shortest_path_length(g, start))
+    layer = {}
+    for grp in groups:           # layers inside each sub-circuit spread its parts apart
+        inside = g.subgraph([n for n, v in nodes.items() if v[2] == grp])
+        for part in nx.connected_components(inside):
+            start = min(part, key=lambda n: (glob[n], str(n)))
+            for n, d in nx.single_source_shortest_path_length(inside, start).items():
+                layer[n] = glob[start] + d
+    for n in nodes:
+        layer.setdefault(n, glob[n])
+    order = {grp: k for k, grp in enumerate(groups)}
+    bands: dict[str, dict[int, list]] = {}
+    for n, (_, _, grp) in nodes.items():
+        bands.setdefault(grp, {}).setdefault(layer[n], []).append(n)
+    pos, y0, spans = {}, 0.0, {}
+    for grp in sorted(bands, key=lambda grp: order.get(grp, len(order))):
+        columns = bands[grp]
+        height = max(len(v) for v in columns.values())
+        for x in sorted(columns):
+            members = columns[x]
+            # barycentre of the neighbours already placed: fewer crossings
+            members.sort(key=lambda n: (sum(pos[m][1] for m in g[n] if m in pos)
+                                        / max(1, sum(1 for m in g[n] if m in pos)))
+                         if any(m in pos for m in g[n]) else y0)
+            for k, n in enumerate(members):
+                pos[n] = (float(x), -(y0 + k + 0.5 * (height - len(members))))
+        spans[grp] = (y0, y0 + height)
+        y0 += height + 0.8
+    return pos, spans
+
+
+def draw_circuit(circuit, path, *, fmt=None):
+    """A layered schematic of a circuit: labelled component boxes, grouped by sub-circuit.
+
+    Components are laid out in layers along their connections and in one band per
+    sub-circuit; hydraulic connections are solid blue, mechanical dashed grey, signals dotted
+    green; a connection of three or more ports meets at a junction dot. ``fmt`` is "png",
+    "svg" (matplotlib) or "dot" (Graphviz, with a cluster per sub-circuit); by default the
+    extension of ``path``.
+    """
+    path = os.fspath(path)
+    fmt = fmt or (os.path.splitext(path)[1].lstrip(".").lower() or "png")
+    nodes, edges, groups = _schematic(circuit)
     if fmt == "dot":
-        lines = ["graph circuit {", "  node [shape=box, fontsize=9];"]
-        for n, data in graph.nodes(data=True):
-            lines.append(f'  "{n}" [label="{n}\\n{data["kind"]}"];')
-        for a, b in graph.edges():
-            lines.append(f'  "{a}" -- "{b}";')
-        lines.append("}")
-        with open(path, "w") as f:
-            f.write("\n".join(lines) + "\n")
-        return path
-    fig, ax = plt.subplots(figsize=(12, 9))
-    pos = nx.kamada_kawai_layout(graph) if graph.number_of_nodes() > 1 else {
-        n: (0, 0) for n in graph}
-    groups = sorted({n.split(".")[0] if "." in n else n for n in graph})
-    colour = {g: f"C{k % 10}" for k, g in enumerate(groups)}
-    nx.draw_networkx_edges(graph, pos, ax=ax, alpha=0.4)
-    nx.draw_networkx_nodes(graph, pos, ax=ax, node_size=60,
-                           node_color=[colour[n.split(".")[0]] for n in graph])
-    nx.draw_networkx_labels(graph, pos, ax=ax, font_size=6,
-                            labels={n: n.split(".", 1)[-1] for n in graph})
-    ax.set_title(f"{circuit.name}: {graph.number_of_nodes()} components")
+        return _write_dot(circuit, nodes, edges, groups, path)
+    if fmt not in ("png", "svg"):
+        raise ValueError(f"draw_circuit: format {fmt!r}; choose png, svg or dot")
+    import matplotlib.patches as mpatches
+    from matplotlib.lines import Line2D
+
+    pos, spans = _layered_positions(nodes, edges, groups)
+    width = max(x for x, _ in pos.values()) + 1 if pos else 1
+    height = max(-y for _, y in pos.values()) + 1 if pos else 1
+    fig, ax = plt.subplots(figsize=(min(4 + 2.0 * width, 60), min(1.5 + 0.55 * height, 80)))
+    for k, (grp, (top, bottom)) in enumerate(spans.items()):
+        if not grp:
+            continue
+        ax.add_patch(mpatches.FancyBboxPatch(
+            (-0.6, -bottom + 0.1), width + 0.2, bottom - top - 0.2,
+            boxstyle="round,pad=0.05", fc=f"C{k % 10}", alpha=0.07, ec=f"C{k % 10}", lw=0.8))
+        ax.text(-0.55, -top - 0.05, grp, fontsize=8, va="top", ha="left", color=f"C{k % 10}",
+                fontweight="bold")
+    for a, b, domain in edges:
+        colour, style, _ = _DOMAIN_STYLE.get(domain, ("k", "-", ""))
+        (xa, ya), (xb, yb) = pos[a], pos[b]
+        if xa == xb and abs(ya - yb) > 1.01:     # same column: bow around the boxes between
+            ax.add_patch(mpatches.FancyArrowPatch(
+                (xa, ya), (xb, yb), connectionstyle=f"arc3,rad={0.25 if ya > yb else -0.25}",
+                arrowstyle="-", color=colour, ls=style, lw=1.2, zorder=1))
+        else:
+            ax.plot([xa, xb], [ya, yb], color=colour, ls=style, lw=1.2, zorder=1)
+    for n, (label, kind, _) in nodes.items():
+        x, y = pos[n]
+        if kind == "junction":
+            ax.plot(x, y, "o", color="0.2", ms=3, zorder=3)
+            continue
+        ax.text(x, y, f"{label}\n{kind}", ha="center", va="center", fontsize=6.5, zorder=4,
+                bbox=dict(boxstyle="round,pad=0.3", fc="white", ec="0.3", lw=0.8))
+    handles = [Line2D([], [], color=c, ls=st, label=d) for d, (c, st, _) in
+               _DOMAIN_STYLE.items() if any(e[2] == d for e in edges)]
+    if handles:
+        ax.legend(handles=handles, loc="upper right", fontsize=7, frameon=False)
+    n_comp = sum(1 for v in nodes.values() if v[1] != "junction")
+    ax.set_title(f"{circuit.name}: {n_comp} components, {len(groups) - 1} sub-circuits",
+                 fontsize=10)
+    ax.set_xlim(-0.8, width)
+    ax.set_ylim(-height - 0.2, 0.6)
     ax.axis("off")
     return _save(fig, path)
 
 
-def _leaf_ports(ref):
-    """The leaf (component, port) pairs an exposed port stands for."""
-    owner = ref.owner
-    if hasattr(owner, "_exposed"):
-        inner, _ = owner._exposed[ref.name]
-        return _leaf_ports(inner)
-    return [(owner, ref.name)]
+def _write_dot(circuit, nodes, edges, groups, path):
+    def q(text):
+        return '"' + str(text).replace('"', r'\"') + '"'
+
+    lines = [f"graph {q(circuit.name)} {{", "  rankdir=LR;",
+             '  node [shape=box, style=rounded, fontsize=9, fontname="Helvetica"];']
+    members: dict[str, list] = {}
+    for n, (_, _, grp) in nodes.items():
+        members.setdefault(grp, []).append(n)
+
+    def emit(grp, indent):
+        pad = "  " * indent
+        for n in members.get(grp, []):
+            label, kind, _ = nodes[n]
+            if kind == "junction":
+                lines.append(f"{pad}{q(n)} [shape=point, width=0.06];")
+            else:
+                lines.append(f"{pad}{q(n)} [label={q(label + chr(92) + 'n' + kind)}];")
+        for sub in groups:
+            if sub and sub.rpartition(".")[0] == grp and sub != grp:
+                lines.append(f"{pad}subgraph {q('cluster_' + sub)} {{")
+                lines.append(f"{pad}  label={q(sub.rpartition('.')[2])}; style=rounded; "
+                             f"color=gray60;")
+                emit(sub, indent + 1)
+                lines.append(f"{pad}}}")
+    emit("", 1)
+    for a, b, domain in edges:
+        lines.append(f"  {q(a)} -- {q(b)} [{_DOMAIN_STYLE.get(domain, ('', '', ''))[2]}];")
+    lines.append("}")
+    with open(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
+    return path
 
 
 def plot_bode(freq_hz, mag_db, phase_deg, path, *, labels=None, title="Bode plot"):

@@ -121,7 +121,10 @@ def _atomic_write(path, write):
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=os.path.basename(path))
+    umask = os.umask(0o22)
+    os.umask(umask)
     try:
+        os.chmod(tmp, 0o666 & ~umask)       # mkstemp makes 0600; the user's umask decides
         with os.fdopen(fd, "w", newline="") as f:
             write(f)
         os.replace(tmp, path)

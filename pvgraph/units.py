@@ -3,11 +3,22 @@
 Inside pvgraph everything is SI. These helpers convert the units hydraulic engineers quote:
 ``bar(13.5)`` -> Pa, ``lpm(16.3)`` -> m^3/s, ``mm(7)`` -> m, ``mm2(3.5)`` -> m^2, ``cm3(8)`` -> m^3.
 Each has an inverse ``to_bar``, ``to_lpm``, ``to_mm``, ... for reporting.
+
+Quantities with units are accepted wherever a parameter is given: ``to_unit("150 bar", "Pa")``
+is 1.5e7, ``to_unit("10 L/min", "m^3/s")`` 1.67e-4, and a pint Quantity converts the same way.
+Every :class:`~pvgraph.component.Params` field converts such values to the unit its description
+declares in brackets and refuses a quantity of the wrong dimension by name. For display,
+:func:`display` turns SI values into bar, L/min and mm (the one convention of the command line;
+``--si`` keeps SI).
 """
 
 from __future__ import annotations
 
+import functools
 import math
+import re
+
+from .errors import ParameterError
 
 BAR = 1e5
 LPM = 1e-3 / 60.0
@@ -80,3 +91,252 @@ def circle_area(diameter):
 def lpm_per_bar(value):
     """Laminar flow constant in L/(min bar) -> m^3/(s Pa)."""
     return value * LPM / BAR
+
+
+# ---------------------------------------------------------------------------------------------
+# Quantities with units: "150 bar", "0.5 L", "10 L/min", pint quantities
+#
+# A unit is parsed into (factor to SI, dimension exponents over m, kg, s, A, K). Grammar:
+# products by space, "*" or "·", quotients by "/" (binding the next factor only, as in
+# "m^3/(s Pa)"), powers by "^", "**" or a trailing integer ("mm2", "cm3"), parentheses.
+
+_DIMS = ("m", "kg", "s", "A", "K")
+_ONE = (0, 0, 0, 0, 0)
+
+
+def _dim(m=0, kg=0, s=0, A=0, K=0):
+    return (m, kg, s, A, K)
+
+
+#: symbol -> (factor to SI, dimension, takes SI prefixes)
+_UNITS = {
+    "m": (1.0, _dim(m=1), True), "g": (1e-3, _dim(kg=1), True), "s": (1.0, _dim(s=1), True),
+    "A": (1.0, _dim(A=1), True), "K": (1.0, _dim(K=1), False),
+    "N": (1.0, _dim(m=1, kg=1, s=-2), True), "Pa": (1.0, _dim(m=-1, kg=1, s=-2), True),
+    "J": (1.0, _dim(m=2, kg=1, s=-2), True), "W": (1.0, _dim(m=2, kg=1, s=-3), True),
+    "V": (1.0, _dim(m=2, kg=1, s=-3, A=-1), True), "Hz": (1.0, _dim(s=-1), True),
+    "ohm": (1.0, _dim(m=2, kg=1, s=-3, A=-2), True), "Ω": (1.0, _dim(m=2, kg=1, s=-3, A=-2), True),
+    "H": (1.0, _dim(m=2, kg=1, s=-2, A=-2), True), "C": (1.0, _dim(s=1, A=1), False),
+    "L": (1e-3, _dim(m=3), True), "l": (1e-3, _dim(m=3), True),
+    "bar": (BAR, _dim(m=-1, kg=1, s=-2), True),
+    "psi": (6894.757293168361, _dim(m=-1, kg=1, s=-2), False),
+    "atm": (101325.0, _dim(m=-1, kg=1, s=-2), False),
+    "min": (60.0, _dim(s=1), False), "h": (3600.0, _dim(s=1), False),
+    "lpm": (LPM, _dim(m=3, s=-1), False), "gpm": (3.785411784e-3 / 60.0, _dim(m=3, s=-1), False),
+    "cc": (1e-6, _dim(m=3), False), "in": (0.0254, _dim(m=1), False),
+    "rad": (1.0, _ONE, False), "deg": (math.pi / 180.0, _ONE, False),
+    "rpm": (2.0 * math.pi / 60.0, _dim(s=-1), False),
+    "%": (0.01, _ONE, False), "-": (1.0, _ONE, False), "1": (1.0, _ONE, False),
+}
+_PREFIXES = {"p": 1e-12, "n": 1e-9, "u": 1e-6, "µ": 1e-6, "μ": 1e-6, "m": 1e-3, "c": 1e-2,
+             "d": 1e-1, "k": 1e3, "M": 1e6, "G": 1e9}
+#: names of the dimensions people meet, for messages
+_KINDS = {
+    _dim(m=-1, kg=1, s=-2): "a pressure", _dim(m=3): "a volume", _dim(m=3, s=-1): "a volume flow",
+    _dim(m=1): "a length", _dim(m=2): "an area", _dim(s=1): "a time",
+    _dim(m=1, kg=1, s=-2): "a force",
+    _dim(kg=1): "a mass", _dim(m=-3, kg=1): "a density", _dim(m=1, s=-1): "a velocity",
+    _dim(s=-1): "a frequency", _ONE: "dimensionless", _dim(kg=1, s=-2): "a stiffness",
+    _dim(kg=1, s=-1): "a damping coefficient", _dim(m=4, kg=-1, s=1): "a laminar flow conductance",
+    _dim(m=2, kg=1, s=-3, A=-1): "a voltage", _dim(A=1): "a current", _dim(m=2, s=-1): "a "
+    "kinematic viscosity", _dim(m=-1, kg=1, s=-1): "a dynamic viscosity",
+}
+
+_NUMBER = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*(.*?)\s*$")
+_TOKEN = re.compile(r"\s*(\*\*|[()*/^·.]|[+-]?\d+|[A-Za-zµμΩ%_]+\d*)")
+
+
+class UnitError(ParameterError, ValueError):
+    """A unit that cannot be parsed, or a quantity of the wrong dimension."""
+
+
+def kind(dim) -> str:
+    """A readable name of a dimension (``"a pressure"``), or its exponents over m, kg, s, A, K."""
+    if dim in _KINDS:
+        return _KINDS[dim]
+    return "[" + " ".join(f"{b}^{e}" if e != 1 else b for b, e in zip(_DIMS, dim) if e) + "]"
+
+
+def _symbol(name: str):
+    if name in _UNITS:
+        return _UNITS[name][:2]
+    for prefix, scale in _PREFIXES.items():
+        rest = name[len(prefix):]
+        if name.startswith(prefix) and rest in _UNITS and _UNITS[rest][2]:
+            f, d = _UNITS[rest][:2]
+            return scale * f, d
+    raise UnitError(f"unknown unit {name!r}")
+
+
+@functools.lru_cache(maxsize=512)
+def parse_unit(text: str) -> tuple[float, tuple]:
+    """``(factor to SI, dimension)`` of a unit string: ``parse_unit("L/min") == (1/60000, ...)``."""
+    src = str(text).strip()
+    if src in ("", "-", "1"):
+        return 1.0, _ONE
+    tokens, pos = [], 0
+    while pos < len(src):
+        m = _TOKEN.match(src, pos)
+        if not m or m.end() == pos:
+            raise UnitError(f"cannot read unit {text!r} at {src[pos:]!r}")
+        tokens.append(m.group(1))
+        pos = m.end()
+    k = [0]
+
+    def peek():
+        return tokens[k[0]] if k[0] < len(tokens) else None
+
+    def take():
+        k[0] += 1
+        return tokens[k[0] - 1]
+
+    def power(f, d):
+        if peek() in ("^", "**"):
+            take()
+            exp = take() if peek() is not None else ""
+            try:
+                e = int(exp)
+            except ValueError:
+                raise UnitError(f"unit {text!r}: the exponent {exp!r} is not an integer") from None
+            return f**e, tuple(x * e for x in d)
+        return f, d
+
+    def factor():
+        tok = peek()
+        if tok is None:
+            raise UnitError(f"unit {text!r} ends where a unit was expected")
+        take()
+        if tok == "(":
+            f, d = product()
+            if peek() != ")":
+                raise UnitError(f"unit {text!r}: missing ')'")
+            take()
+        elif tok[0].isalpha() or tok[0] in "µμΩ%_":
+            m2 = re.fullmatch(r"([A-Za-zµμΩ%_]+)(\d+)", tok)
+            if m2 and tok not in _UNITS:            # "mm2", "cm3": a power without "^"
+                f, d = _symbol(m2.group(1))
+                e = int(m2.group(2))
+                f, d = f**e, tuple(x * e for x in d)
+            else:
+                f, d = _symbol(tok)
+        elif tok.lstrip("+-").isdigit():
+            f, d = float(tok), _ONE
+        else:
+            raise UnitError(f"unit {text!r}: unexpected {tok!r}")
+        return power(f, d)
+
+    def product():
+        f, d = factor()
+        while peek() is not None and peek() != ")":
+            op = peek()
+            if op in ("*", "·", "."):
+                take()
+                g, e = factor()
+            elif op == "/":
+                take()
+                g, e = factor()
+                g, e = 1.0 / g, tuple(-x for x in e)
+            else:
+                g, e = factor()
+            f, d = f * g, tuple(a + b for a, b in zip(d, e))
+        return f, d
+
+    f, d = product()
+    if k[0] != len(tokens):
+        raise UnitError(f"unit {text!r}: unexpected {tokens[k[0]]!r}")
+    return _snap(f), d
+
+
+def _snap(f: float) -> float:
+    """``f`` rounded to a short decimal when it is within a few ulps of one (cm^3 -> 1e-6)."""
+    short = float(f"{f:.12g}")
+    return short if abs(short - f) <= 4 * math.ulp(f) else f
+
+
+def _pint_si(q) -> tuple[float, tuple]:
+    """(magnitude in SI base units, dimension) of a pint Quantity."""
+    base = q.to_base_units()
+    dims = dict(q.dimensionality)
+    order = ("[length]", "[mass]", "[time]", "[current]", "[temperature]")
+    unknown = [k for k in dims if k not in order]
+    if unknown:
+        raise UnitError(f"quantity {q!r} has dimensions pvgraph does not use: {unknown}")
+    d = tuple(int(dims.get(k, 0)) for k in order)
+    return base.magnitude, d
+
+
+def is_quantity(value) -> bool:
+    """True for a string with a unit (``"150 bar"``) or a pint Quantity."""
+    return (isinstance(value, str) and bool(_NUMBER.match(value))) or _is_pint(value)
+
+
+def _is_pint(value) -> bool:
+    return all(hasattr(value, a) for a in ("magnitude", "dimensionality", "to_base_units"))
+
+
+def to_unit(value, unit: str, what: str = "value") -> float:
+    """``value`` (a number, ``"150 bar"`` or a pint Quantity) expressed in ``unit``.
+
+    A plain number is taken to be in ``unit`` already. A quantity of another dimension raises
+    :class:`UnitError` naming ``what``, both units and both dimensions.
+    """
+    factor, dim = parse_unit(unit)
+    if _is_pint(value):
+        si, got = _pint_si(value)
+        shown = f"{value:~P}" if hasattr(value, "__format__") else str(value)
+    elif isinstance(value, str):
+        m = _NUMBER.match(value)
+        if not m:
+            raise UnitError(f"{what} = {value!r}: {value!r} is not a number (write a number, "
+                            f"or one with a unit, e.g. '150 bar')")
+        number, text = float(m.group(1)), m.group(2)
+        if not text:
+            return number
+        try:
+            f, got = parse_unit(text)
+        except UnitError as exc:
+            raise UnitError(f"{what} = {value!r}: {exc}") from None
+        si, shown = number * f, value
+    else:
+        return value
+    if got != dim:
+        raise UnitError(f"{what} = {shown!r} is {kind(got)}, but {what} is {kind(dim)} "
+                        f"[{unit}]")
+    return si / factor
+
+
+def declared_unit(description: str | None) -> str | None:
+    """The unit a parameter declares in its description, ``"Orifice area [m^2]"`` -> ``"m^2"``.
+
+    None when there is no bracket that reads as a unit (``[unit of y]``, ``[0, 1]``).
+    """
+    for text in re.findall(r"\[([^\[\]]*)\]", description or ""):
+        try:
+            parse_unit(text)
+        except UnitError:
+            continue
+        return text
+    return None
+
+
+# ---------------------------------------------------------------------------------------------
+# Display: one convention for people (bar, L/min, mm, L, mm^2), SI on request and in files
+
+#: SI unit -> (display unit, factor: SI value / factor = display value)
+DISPLAY_UNITS = {"Pa": ("bar", BAR), "m^3/s": ("L/min", LPM), "m": ("mm", MM),
+                 "m^3": ("L", LITRE), "m^2": ("mm^2", MM2), "m/s": ("mm/s", MM),
+                 "m^3/(s Pa)": ("L/(min bar)", LPM / BAR)}
+
+
+def display(value, unit: str, si: bool = False):
+    """``(value, unit)`` in the units people read (bar, L/min, mm ...), or unchanged if ``si``."""
+    if si or unit not in DISPLAY_UNITS:
+        return value, unit
+    shown, factor = DISPLAY_UNITS[unit]
+    return value / factor, shown
+
+
+def format_value(value: float, unit: str, si: bool = False, digits: int = 6) -> str:
+    """``"83.9 bar"``: a value in display units (or SI with ``si=True``)."""
+    v, u = display(value, unit, si)
+    return f"{v:.{digits}g} {u}".rstrip()

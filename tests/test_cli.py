@@ -79,18 +79,14 @@ def test_random_sweep_of_the_return_line_conductance(tmp_path):
     assert [c["params"] for c in again] == [c["params"] for c in cases]
 
 
-def test_sweep_with_a_failing_case_keeps_the_others_and_exits_1(tmp_path, capsys):
+def test_sweep_with_an_invalid_value_exits_2_before_any_case_runs(tmp_path, capsys):
     code = main(["sweep", "--scenario", "sweep-4", "--param", "pve.input_gain=0.028,-1",
                  "--t-end", "0.3", "--backend", "serial", "--out", str(tmp_path)])
-    captured = capsys.readouterr()
-    assert code == 1
-    cases = _json(tmp_path / "sweep.json")["cases"]
-    assert [c["status"] for c in cases] == ["ok", "failed"]
-    assert cases[0]["outputs"]["Q_total"] > 0
-    assert cases[1]["error"]["type"] == "ParameterError"
-    assert "pve.input_gain = -1.0" in cases[1]["error"]["message"]
-    assert "FAILED: ParameterError" in captured.out and "pve.input_gain" in captured.err
-    assert "failed" in (tmp_path / "sweep.csv").read_text().splitlines()[2]
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "1 of 2 cases have invalid parameter values; nothing was run" in err
+    assert "pve.input_gain = -1.0" in err
+    assert not (tmp_path / "sweep.json").exists() and not (tmp_path / "cases.jsonl").exists()
 
 
 @pytest.mark.parametrize("args, message", [
@@ -196,3 +192,274 @@ def test_validate_calibrate_writes_estimates(tmp_path, capsys):
     est = {p["name"]: p for p in _json(tmp_path / "calibration.json")["parameters"]}
     v = est["rig.supply_voltage"]
     assert v["ci_low"] < 11.5 < v["ci_high"]            # the report's identified supply
+
+
+# --------------------------------------------------------------------------------------------
+# the user's own circuit: FILE.py:NAME, MODULE:NAME, model files
+
+RIG_FILE = '''
+import sys
+import time
+
+from pydantic import Field
+
+from components import FlowSource, Orifice, Tank, VolumeNode
+from pvgraph import Circuit, Component, Hydraulic, Params
+
+
+class SleepyParams(Params):
+    delay: float = Field(0.0, ge=0.0, description="Wall time spent tracing [s]")
+    exit: float = Field(0.0, ge=0.0, le=1.0, description="1 calls sys.exit while tracing [-]")
+
+
+class Sleepy(Component):
+    """A closed port that takes ``delay`` seconds to trace (a stand-in for a slow case)."""
+    Params = SleepyParams
+    ports = {"port": Hydraulic("closed end")}
+
+    def equations(self, v, p):
+        time.sleep(p.delay)
+        if p.exit:
+            sys.exit(3)
+        return [v.port.q]
+
+
+def build(Q="10 L/min"):
+    c = Circuit("demo")
+    pump = c.add("pump", FlowSource(Q=Q))
+    node = c.add("node", VolumeNode(V="0.5 L"))
+    orifice = c.add("orifice", Orifice(A="2 mm^2"))
+    tank = c.add("tank", Tank())
+    c.connect(pump.port, node.port, orifice.a)
+    c.connect(orifice.b, tank.port)
+    return c
+
+
+def slow():
+    """The demo circuit with a Sleepy part on the node."""
+    c = build()
+    part = c.add("slow", Sleepy())
+    c.connect(part.port, c["tank"].port)
+    return c
+
+
+def nested():
+    """The demo circuit inside a 'bench' that exposes the node as port P."""
+    inner = build()
+    inner.expose("P", inner["node"].port)
+    outer = Circuit("outer")
+    outer.add("bench", inner)
+    return outer
+'''
+RHO, CD, A_ORF, Q_PUMP, BETA, V_NODE = 870.0, 0.6, 2e-6, 10 / 60e3, 7e8, 0.5e-3
+
+
+def _p_steady(Q=Q_PUMP, A=A_ORF):
+    """Orifice law at steady state: p = rho/2 (Q / (Cd A))^2."""
+    return RHO / 2 * (Q / (CD * A)) ** 2
+
+
+@pytest.fixture
+def rig_file(tmp_path):
+    path = tmp_path / "my_rig.py"
+    path.write_text(RIG_FILE)
+    return str(path)
+
+
+def _final_values(out):
+    vals = {}
+    for line in out.splitlines():
+        cells = line.split()
+        if len(cells) >= 4 and cells[1] == "final":
+            vals[cells[0]] = (float(cells[2]), cells[3])
+    return vals
+
+
+def test_simulate_a_file_target_prints_bar_and_writes_si(rig_file, tmp_path, capsys):
+    csv = tmp_path / "out.csv"
+    assert main(["simulate", f"{rig_file}:build", "--t-end", "1", "--var", "node.port.p",
+                 "--var", "orifice.q", "--csv", str(csv)]) == 0
+    vals = _final_values(capsys.readouterr().out)
+    assert vals["node.port.p"][1] == "bar" and vals["orifice.q"][1] == "L/min"
+    assert vals["node.port.p"][0] == pytest.approx(_p_steady() / 1e5, rel=2e-3)
+    assert vals["orifice.q"][0] == pytest.approx(10.0, rel=2e-3)
+    header = csv.read_text().splitlines()[0]
+    assert header == "t [s],node.port.p [Pa],orifice.q [m^3/s]"
+    assert main(["simulate", f"{rig_file}:build", "--t-end", "1", "--var", "node.port.p",
+                 "--si", "--option", 'Q="5 L/min"']) == 0
+    p, unit = _final_values(capsys.readouterr().out)["node.port.p"]
+    assert unit == "Pa" and p == pytest.approx(_p_steady(Q=Q_PUMP / 2), rel=2e-3)
+
+
+def test_simulate_a_module_target(rig_file, tmp_path, monkeypatch, capsys):
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert main(["simulate", "my_rig:build", "--t-end", "1", "--var", "node.port.p"]) == 0
+    p, _ = _final_values(capsys.readouterr().out)["node.port.p"]
+    assert p == pytest.approx(_p_steady() / 1e5, rel=2e-3)
+
+
+@pytest.mark.parametrize("target, message", [
+    ("{file}:buld", "has no 'buld'. Did you mean 'build'?"),
+    ("{dir}/missing.py:build", "no such file"),
+    ("rgi", "unknown circuit 'rgi'. Did you mean 'rig'?"),
+    ("no_such_module_xyz:build", "cannot import module 'no_such_module_xyz'"),
+])
+def test_bad_targets_exit_2(target, message, rig_file, tmp_path, capsys):
+    spec = target.format(file=rig_file, dir=tmp_path)
+    assert main(["simulate", spec]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_misspelled_var_fails_before_simulating(rig_file, tmp_path, capsys):
+    csv = tmp_path / "never.csv"
+    code = main(["simulate", f"{rig_file}:build", "--var", "node.port.pp", "--csv", str(csv)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "--var 'node.port.pp' is not a variable" in err and "did you mean 'node.port.p'" in err
+    assert "steps" not in err and not csv.exists()
+
+
+def test_vars_lists_names_units_and_exposed_ports(rig_file, capsys):
+    assert main(["vars", f"{rig_file}:nested"]) == 0
+    out = capsys.readouterr().out
+    rows = {line.split()[0]: line for line in out.splitlines()[1:]}
+    assert "[Pa]" in rows["bench.node.port.p"] and "state" in rows["bench.node.port.p"]
+    assert "[m^3/s]" in rows["bench.orifice.q"] and "output" in rows["bench.orifice.q"]
+    assert "= bench.node.port.p (exposed port)" in rows["bench.P.p"]
+    # an exposed port is a valid name everywhere, and close matches include it
+    assert main(["simulate", f"{rig_file}:nested", "--t-end", "1", "--var", "bench.P.p"]) == 0
+    p, _ = _final_values(capsys.readouterr().out)["bench.P.p"]
+    assert p == pytest.approx(_p_steady() / 1e5, rel=2e-3)
+    assert main(["simulate", f"{rig_file}:nested", "--var", "bench.P.pp"]) == 2
+    assert "'bench.P.p'" in capsys.readouterr().err
+
+
+def test_sweep_a_file_target_with_units(rig_file, tmp_path, capsys):
+    out = tmp_path / "study"
+    assert main(["sweep", f"{rig_file}:build", "--param", "orifice.A=1 mm^2,2 mm^2,4 mm^2",
+                 "--var", "node.port.p", "--t-end", "4", "--backend", "serial",
+                 "--out", str(out)]) == 0
+    data = _json(out / "sweep.json")
+    A = [c["params"]["orifice.A"] for c in data["cases"]]
+    p = [c["outputs"]["node.port.p"] for c in data["cases"]]
+    assert A == pytest.approx([1e-6, 2e-6, 4e-6], rel=1e-14)
+    assert p == pytest.approx([_p_steady(A=a) for a in A], rel=3e-3)
+    assert data["units"] == {"node.port.p": "Pa"}
+    assert (out / "sweep.csv").read_text().splitlines()[0] == \
+        "index,status,wall_time,orifice.A,node.port.p [Pa],error_type,error_message"
+    assert "node.port.p [bar]" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("param, message", [
+    ("orifice.A=1e-6,-1e-6", "nothing was run"),
+    ("orifice.AA=1e-6", "did you mean 'orifice.A'"),
+    ("orifice.A=2 bar", "is a pressure, but orifice.A is an area"),
+])
+def test_sweep_a_file_target_refuses_bad_values_before_running(param, message, rig_file,
+                                                                tmp_path, capsys):
+    code = main(["sweep", f"{rig_file}:build", "--param", param, "--var", "node.port.p",
+                 "--backend", "serial", "--out", str(tmp_path / "s")])
+    assert code == 2 and message in capsys.readouterr().err
+    assert not (tmp_path / "s" / "sweep.json").exists()
+
+
+def test_linearize_a_file_target_against_the_orifice_law(rig_file, tmp_path):
+    """Around p0 = rho/2 (Q/(Cd A))^2: dp/dQ = 2 p0 / Q, one pole at -(beta/V) Q / (2 p0)."""
+    path = tmp_path / "lin.json"
+    assert main(["linearize", f"{rig_file}:build", "--input", "pump.Q", "--output",
+                 "node.port.p", "--json", str(path)]) == 0
+    data = _json(path)
+    p0 = _p_steady()
+    assert data["operating_point"]["node.port.p"] == pytest.approx(p0, rel=1e-6)
+    assert data["dc_gain"]["node.port.p"]["pump.Q"] == pytest.approx(2 * p0 / Q_PUMP, rel=1e-4)
+    assert data["n_states"] == 1
+    assert data["poles"][0]["real"] == pytest.approx(-BETA / V_NODE * Q_PUMP / (2 * p0),
+                                                     rel=1e-4)
+
+
+def test_graph_and_export_of_a_file_target(rig_file, tmp_path, capsys):
+    for name in ("c.png", "c.svg", "c.dot"):
+        assert main(["graph", f"{rig_file}:build", "--out", str(tmp_path / name)]) == 0
+    assert (tmp_path / "c.png").stat().st_size > 5000
+    assert "<svg" in (tmp_path / "c.svg").read_text()
+    dot = (tmp_path / "c.dot").read_text()
+    assert dot.startswith("graph") and '"orifice"' in dot
+    model = tmp_path / "demo.toml"
+    assert main(["export", f"{rig_file}:build", "--out", str(model)]) == 0
+    capsys.readouterr()
+    assert main(["simulate", str(model), "--t-end", "1", "--var", "node.port.p"]) == 0
+    p, _ = _final_values(capsys.readouterr().out)["node.port.p"]
+    assert p == pytest.approx(_p_steady() / 1e5, rel=2e-3)
+
+
+def test_pvgraph_runs_without_the_pvg32_application(rig_file, tmp_path):
+    """With circuits/ unimportable and no plugins, the framework and its CLI still work."""
+    import os
+    import subprocess
+    import sys
+    code = (
+        "import sys; sys.modules['circuits'] = None\n"
+        "from pvgraph.cli import main\n"
+        f"assert main(['simulate', {rig_file + ':build'!r}, '--t-end', '0.5']) == 0\n"
+        "try:\n"
+        "    main(['validate'])\n"
+        "except SystemExit as exc:\n"
+        "    assert exc.code == 2\n"
+        "else:\n"
+        "    raise AssertionError('validate should be unknown')\n"
+        "assert main(['simulate', 'rig']) == 2\n"
+        "print('standalone ok')\n")
+    env = {**os.environ, "PVGRAPH_PLUGINS": ""}
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "standalone ok" in proc.stdout
+    assert "No application has registered circuits" in proc.stderr
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_a_sweep_keeps_what_is_done_and_resume_finishes(rig_file, tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    out = tmp_path / "study"
+    args = [sys.executable, "-m", "pvgraph.cli", "sweep", f"{rig_file}:slow", "--param",
+            "slow.delay=0.4:0.5:8", "--var", "node.port.p", "--t-end", "0.2",
+            "--backend", "process", "--workers", "2", "--out", str(out)]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": os.getcwd()})
+    log = out / "cases.jsonl"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        if log.exists() and len(log.read_text().splitlines()) >= 3:   # header + 2 cases
+            break
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "cases finished and kept" in stderr and "--resume" in stderr
+    assert "Traceback" not in stderr
+    finished = len(log.read_text().splitlines()) - 1
+    data = _json(out / "sweep.json")
+    assert 2 <= data["n_finished"] == finished < 8 and data["complete"] is False
+    resumed = subprocess.run(args + ["--resume"], capture_output=True, text=True, timeout=120,
+                             env={**os.environ, "PYTHONPATH": os.getcwd()})
+    assert resumed.returncode == 0, resumed.stderr
+    data = _json(out / "sweep.json")
+    assert data["complete"] is True and data["n_ok"] == 8
+    p = [c["outputs"]["node.port.p"] for c in data["cases"]]
+    assert max(p) - min(p) < 1e-6 * max(p)           # the delay changes nothing physical
+
+
+def test_a_broken_user_file_is_named(tmp_path, capsys):
+    bad = tmp_path / "broken.py"
+    bad.write_text("def build():\n    return 1 +\n")
+    assert main(["simulate", f"{bad}:build"]) == 2
+    err = capsys.readouterr().err
+    assert "broken.py (line 2): importing it failed: SyntaxError" in err
+    wrong = tmp_path / "wrong.py"
+    wrong.write_text("def build():\n    return 42\n")
+    assert main(["simulate", f"{wrong}:build"]) == 2
+    assert "returned int, not a pvgraph Circuit" in capsys.readouterr().err

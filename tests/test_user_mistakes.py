@@ -199,3 +199,66 @@ def test_pump_without_tank_names_the_suction_port():
     with pytest.raises(CircuitError) as exc:
         c.compile()
     assert "'pump.a'" in str(exc.value) and "not connected" in str(exc.value)
+
+
+def test_a_loop_with_no_tank_says_there_is_no_pressure_reference():
+    """pump -> orifice -> pump: every pressure is undetermined; the fix is a Tank."""
+    c = Circuit("loop")
+    pump = c.add("pump", Pump(Q0=lpm(10)))
+    orifice = c.add("orifice", Orifice(A=mm2(2)))
+    c.connect(pump.b, orifice.a)
+    c.connect(orifice.b, pump.a)
+    with pytest.raises(StructureError) as exc:
+        c.compile()
+    msg = str(exc.value)
+    assert msg.startswith("circuit 'loop': the hydraulic network of orifice, pump has no "
+                          "pressure reference")
+    assert "Connect a Tank" in msg
+
+
+def test_a_closed_loop_of_volumes_warns_that_it_floats():
+    """Two volumes joined by two orifices and nothing else: the pressure level is only the
+    start values'; the circuit runs but is probably not what was meant."""
+    c = Circuit("ring")
+    v1 = c.add("v1", VolumeNode(V=litre(1), p0=42e5))
+    v2 = c.add("v2", VolumeNode(V=litre(1)))
+    o1 = c.add("o1", Orifice(A=mm2(1)))
+    o2 = c.add("o2", Orifice(A=mm2(1)))
+    c.connect(v1.port, o1.a, o2.b)
+    c.connect(o1.b, v2.port, o2.a)
+    with pytest.warns(PlausibilityWarning, match=r"'ring': the hydraulic network of o1, o2, "
+                                                 r"v1, v2 has no pressure reference"):
+        sol = simulate(c, 0.5)
+    # it floats: the two volumes share the trapped oil, 42 bar into twice the volume
+    assert sol.final("v1.port.p") == pytest.approx(21e5, rel=1e-3)
+    c2 = demo()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        c2.compile()                                 # a circuit with a tank: no warning
+
+
+@pytest.mark.parametrize("name", ["pump\n", "pump ", " pump", "1pump", "a.b", ""])
+def test_component_names_must_be_whole_identifiers(name):
+    with pytest.raises(CircuitError, match="is not a valid identifier"):
+        Circuit("c").add(name, Tank())
+
+
+def test_a_circuit_added_to_itself_or_to_its_child_is_refused():
+    outer = Circuit("outer")
+    with pytest.raises(CircuitError, match="cannot contain itself"):
+        outer.add("me", outer)
+    inner = outer.add("inner", Circuit("inner"))
+    with pytest.raises(CircuitError, match="cannot contain its enclosing circuit 'outer'"):
+        inner.add("outer", outer)
+
+
+@pytest.mark.parametrize("value, message", [
+    (True, "A = True: True is a bool, not a number [m^2]"),
+    (5e-324, "A = 5e-324: 5e-324 is outside the magnitudes a model can compute with"),
+    ("150 bar", "A = '150 bar': A = '150 bar' is a pressure, but A is an area [m^2]"),
+])
+def test_parameter_values_that_would_mislead_get_named_errors(value, message):
+    with pytest.raises(ParameterError) as exc:
+        Orifice(A=value)
+    assert "invalid parameters for Orifice" in str(exc.value) and message in str(exc.value)
+

@@ -1,8 +1,8 @@
 """Parameters of the PVG 32 valve and its lab rig, with provenance.
 
-Every value comes from the 2009 modelling report (``reference/pvg32_modelling_report_2009.txt``)
-and carries the section, equation or table in its field description. Everything is SI (Pa, m,
-m^2, m^3, m^3/s, kg, N, N/m, N s/m, s, rad); report units are converted here, at the edge, with
+Every value comes from the 2009 PVG 32 modelling report (not shipped with pvgraph) and
+carries the section, equation or table in its field description. Everything is SI (Pa, m, m^2,
+m^3, m^3/s, kg, N, N/m, N s/m, s, rad); report units are converted here, at the edge, with
 the helpers of :mod:`pvgraph.units`. Opening-area tables and the solenoid-valve flow maps are in
 :mod:`circuits.pvg32.tables`; the model they feed is summarised in ``docs/pvg32_model.md``.
 

@@ -31,9 +31,20 @@ Design
   import the modules ``run`` comes from.
 - **Order.** Cases finish in any order; the result holds them in case order, and the progress
   callback ``progress(done, total, case_index)`` is called in this process as each finishes.
-- **Files.** :meth:`SweepResult.to_csv` and :meth:`SweepResult.to_json` write atomically (a
-  temporary file renamed over the target), so an interrupted write never leaves half a file;
-  ``sweep(..., out=folder)`` writes ``folder/sweep.csv`` and ``folder/sweep.json`` at the end.
+- **Files.** With ``out=folder`` every finished case is appended to ``folder/cases.jsonl`` (one
+  JSON record per line, flushed as the case finishes): the record of what is done, whatever
+  happens next. ``folder/sweep.csv`` and ``folder/sweep.json`` are written from the same records
+  at the end, atomically (a temporary file renamed over the target), so they always agree and an
+  interrupted write never leaves half a file. Files get the permissions of the user's umask.
+- **Interruptions.** Ctrl-C stops the sweep cleanly: the workers are stopped, the finished
+  cases are written as above and :class:`SweepInterrupted` (a ``KeyboardInterrupt``) carries the
+  partial result. ``resume=True`` reads ``cases.jsonl`` and runs only the cases not yet finished
+  successfully (failed and timed-out cases run again).
+- **Bad cases.** ``timeout=seconds`` stops a case that runs longer (status ``"timeout"``; serial
+  and process backends, on systems with ``SIGALRM``). A ``SystemExit`` inside ``run`` is a
+  failed case, not the end of the sweep. An output that is NaN or infinite marks the case
+  ``"nonfinite"``. ``check(case)`` runs on every case before any case runs: invalid parameter
+  values raise :class:`SweepError` naming the cases, and nothing runs.
 
 Cases
 -----
@@ -52,6 +63,8 @@ import math
 import numbers
 import os
 import pickle
+import signal
+import threading
 import time
 import traceback as _traceback
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -64,20 +77,34 @@ import numpy as np
 from .._progress import ProgressBar
 from ..errors import PvgraphError
 
-__all__ = ["SweepError", "CaseResult", "SweepResult", "sweep", "grid", "random_sample",
-           "BACKENDS"]
+__all__ = ["SweepError", "SweepInterrupted", "CaseResult", "SweepResult", "sweep", "grid",
+           "random_sample", "BACKENDS", "LOG_NAME"]
 
 BACKENDS = ("process", "serial", "dask")
 SAMPLING_METHODS = ("uniform", "lhs")
 MAX_PROCESS_WORKERS = 61   # the largest pool ProcessPoolExecutor accepts on every platform
-OK, FAILED = "ok", "failed"
+OK, FAILED, TIMEOUT, NONFINITE = "ok", "failed", "timeout", "nonfinite"
 #: CSV columns every sweep writes; no parameter or output may take these names
 RESERVED_COLUMNS = ("index", "status", "wall_time", "error_type", "error_message")
-CSV_NAME, JSON_NAME = "sweep.csv", "sweep.json"
+CSV_NAME, JSON_NAME, LOG_NAME = "sweep.csv", "sweep.json", "cases.jsonl"
+LOG_VERSION = 1
 
 
 class SweepError(PvgraphError, ValueError):
     """A sweep is set up wrongly: no cases, mismatched parameter names, an unknown backend."""
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a sweep; ``.result`` holds the finished cases (already written to ``out``)."""
+
+    def __init__(self, result: "SweepResult"):
+        super().__init__(f"sweep interrupted after {len(result)} of {result.n_cases} cases")
+        self.result = result
+
+
+class CaseTimeout(BaseException):
+    """Raised inside a case that exceeds its time limit (a BaseException: ``except Exception``
+    in the case's own code does not swallow it)."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -145,14 +172,38 @@ def _failure(index: int, params: Mapping, exc: BaseException, tb: str | None = N
                       tb if tb is not None else "".join(_traceback.format_exception(exc)))
 
 
-def _run_case(run: Callable, index: int, params: Mapping) -> CaseResult:
+def _alarm(signum, frame):
+    raise CaseTimeout()
+
+
+def _run_case(run: Callable, index: int, params: Mapping,
+              timeout: float | None = None) -> CaseResult:
     """Run one case and record its outputs or its error (executed where the case runs)."""
+    timed = timeout is not None and hasattr(signal, "setitimer") and \
+        threading.current_thread() is threading.main_thread()
+    if timed:
+        previous = signal.signal(signal.SIGALRM, _alarm)
+        signal.setitimer(signal.ITIMER_REAL, timeout)
     t0 = time.perf_counter()
     try:
         outputs = _check_outputs(run(**params), params)
-    except Exception as exc:
+    except CaseTimeout:
+        res = CaseResult(index, dict(params), {}, TIMEOUT, time.perf_counter() - t0,
+                         "CaseTimeout", f"stopped after the time limit of {timeout:g} s")
+        return res
+    except (Exception, SystemExit) as exc:
         return _failure(index, params, exc, _traceback.format_exc(), time.perf_counter() - t0)
-    return CaseResult(index, dict(params), outputs, OK, time.perf_counter() - t0)
+    finally:
+        if timed:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.signal(signal.SIGALRM, previous)
+    wall = time.perf_counter() - t0
+    bad = [n for n, v in outputs.items() if not math.isfinite(v)]
+    if bad:
+        return CaseResult(index, dict(params), outputs, NONFINITE, wall, "NonFiniteOutput",
+                          f"output(s) {', '.join(bad)} not finite: "
+                          f"{', '.join(repr(outputs[n]) for n in bad)}")
+    return CaseResult(index, dict(params), outputs, OK, wall)
 
 
 # --------------------------------------------------------------------------------------------
@@ -166,8 +217,10 @@ class SweepResult:
 
     def __init__(self, records: Sequence[CaseResult], param_names: Sequence[str], *,
                  backend: str = "serial", wall_time: float = 0.0,
-                 units: Mapping[str, str] | None = None):
+                 units: Mapping[str, str] | None = None, n_cases: int | None = None):
         self.records = list(records)
+        self.n_cases = len(self.records) if n_cases is None else int(n_cases)
+        self.files: tuple[str, str] | None = None
         self.param_names = list(param_names)
         self.backend = backend
         self.wall_time = float(wall_time)
@@ -192,8 +245,13 @@ class SweepResult:
         return [r for r in self.records if r.ok]
 
     @property
+    def complete(self) -> bool:
+        """True when every case has a record (False after an interruption)."""
+        return len(self.records) == self.n_cases
+
+    @property
     def failed(self) -> list[CaseResult]:
-        """The failed cases, in case order."""
+        """The cases that failed, timed out or gave non-finite outputs, in case order."""
         return [r for r in self.records if not r.ok]
 
     def column(self, name: str) -> np.ndarray:
@@ -221,7 +279,8 @@ class SweepResult:
     def to_dict(self) -> dict:
         """The whole sweep as a JSON-ready dict."""
         return {"backend": self.backend, "wall_time": _json_value(self.wall_time),
-                "n_cases": len(self), "n_ok": len(self.ok), "n_failed": len(self.failed),
+                "n_cases": self.n_cases, "n_finished": len(self), "complete": self.complete,
+                "n_ok": len(self.ok), "n_failed": len(self.failed),
                 "param_names": self.param_names, "output_names": self.output_names,
                 "units": self.units, "cases": [r.to_dict() for r in self.records]}
 
@@ -236,11 +295,13 @@ class SweepResult:
     def to_csv(self, path) -> str:
         """Write one row per case to ``path`` atomically.
 
-        Columns: ``index, status, wall_time``, the parameters, the outputs (SI, full precision;
-        empty where a case failed), ``error_type, error_message``. Tracebacks are in the JSON.
+        Columns: ``index, status, wall_time``, the parameters, the outputs (SI, full precision,
+        the unit in the column name when known; empty where a case failed), ``error_type,
+        error_message``. Tracebacks are in the JSON.
         """
         from ..simulate import _atomic_write
-        header = (["index", "status", "wall_time"] + self.param_names + self.output_names
+        outs = [f"{n} [{self.units[n]}]" if self.units.get(n) else n for n in self.output_names]
+        header = (["index", "status", "wall_time"] + self.param_names + outs
                   + ["error_type", "error_message"])
         rows = []
         for r in self.records:
@@ -259,8 +320,9 @@ class SweepResult:
     def save(self, folder) -> tuple[str, str]:
         """Write ``folder/sweep.csv`` and ``folder/sweep.json``; returns both paths."""
         folder = os.fspath(folder)
-        return (self.to_csv(os.path.join(folder, CSV_NAME)),
-                self.to_json(os.path.join(folder, JSON_NAME)))
+        self.files = (self.to_csv(os.path.join(folder, CSV_NAME)),
+                      self.to_json(os.path.join(folder, JSON_NAME)))
+        return self.files
 
     def to_dataframe(self):
         """The CSV table as a pandas DataFrame (pandas is optional and imported here)."""
@@ -367,16 +429,32 @@ def _progress_callback(progress, total: int):
 
 
 # --------------------------------------------------------------------------------------------
-def _run_serial(run, cases, report) -> None:
-    for i, c in enumerate(cases):
-        report(_run_case(run, i, c))
+def _run_serial(run, todo, cases, report, timeout) -> None:
+    for i in todo:
+        report(_run_case(run, i, cases[i], timeout))
 
 
-def _run_isolated(run, index, params) -> CaseResult:
+def _ignore_sigint() -> None:
+    """Worker initialiser: Ctrl-C is the parent's to handle (it stops the workers)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _stop_pool(pool) -> None:
+    """Cancel what has not started and stop the worker processes now."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in procs:
+        if proc.is_alive():
+            proc.terminate()
+    for proc in procs:
+        proc.join(timeout=2)
+
+
+def _run_isolated(run, index, params, timeout=None) -> CaseResult:
     """One case in a fresh single-worker process pool (after a pool broke)."""
-    with ProcessPoolExecutor(max_workers=1) as pool:
+    with ProcessPoolExecutor(max_workers=1, initializer=_ignore_sigint) as pool:
         try:
-            return pool.submit(_run_case, run, index, params).result()
+            return pool.submit(_run_case, run, index, params, timeout).result()
         except BrokenProcessPool as exc:
             return _failure(index, params, BrokenProcessPool(
                 f"the worker process running case {index} died ({exc}); it was killed, ran "
@@ -385,11 +463,11 @@ def _run_isolated(run, index, params) -> CaseResult:
             return _failure(index, params, exc)
 
 
-def _run_process(run, cases, workers, report) -> None:
+def _run_process(run, todo, cases, workers, report, timeout) -> None:
     broken = []
-    pool = ProcessPoolExecutor(max_workers=workers)
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=_ignore_sigint)
     try:
-        futures = {pool.submit(_run_case, run, i, c): i for i, c in enumerate(cases)}
+        futures = {pool.submit(_run_case, run, i, cases[i], timeout): i for i in todo}
         for fut in as_completed(futures):
             i = futures[fut]
             try:
@@ -399,14 +477,14 @@ def _run_process(run, cases, workers, report) -> None:
             except Exception as exc:  # the result could not be sent back
                 report(_failure(i, cases[i], exc))
     except BaseException:
-        pool.shutdown(wait=False, cancel_futures=True)
+        _stop_pool(pool)
         raise
     pool.shutdown()
     for i in sorted(broken):
-        report(_run_isolated(run, i, cases[i]))
+        report(_run_isolated(run, i, cases[i], timeout))
 
 
-def _run_dask(run, cases, workers, client, report) -> None:
+def _run_dask(run, todo, cases, workers, client, report) -> None:
     try:
         import distributed
     except ImportError:
@@ -431,8 +509,8 @@ def _run_dask(run, cases, workers, client, report) -> None:
         raise SweepError(f"client must be a distributed.Client or a scheduler address string, "
                          f"got {type(client).__name__}")
     try:
-        futures = [client.submit(_run_case, run, i, c, pure=False) for i, c in enumerate(cases)]
-        index = {f.key: i for i, f in enumerate(futures)}
+        futures = [client.submit(_run_case, run, i, cases[i], pure=False) for i in todo]
+        index = {f.key: i for i, f in zip(todo, futures)}
         for fut in distributed.as_completed(futures, loop=client.loop):
             i = index[fut.key]
             try:
@@ -448,7 +526,9 @@ def _run_dask(run, cases, workers, client, report) -> None:
 def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, Any]], *,
           backend: str = "process", workers: int | None = None, client=None,
           progress: bool | Callable[[int, int, int], None] | None = None, out=None,
-          units: Mapping[str, str] | None = None) -> SweepResult:
+          units: Mapping[str, str] | None = None, resume: bool = False,
+          timeout: float | None = None,
+          check: Callable[[dict], None] | None = None) -> SweepResult:
     """Run ``run(**case)`` for every case and collect the outputs, in case order.
 
     Parameters
@@ -473,21 +553,34 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
         ``progress(done, total, case_index)`` after each case, or True for a text bar on
         stderr (drawn only when stderr is a terminal).
     out : path, optional
-        A folder; ``sweep.csv`` and ``sweep.json`` are written there (atomically) at the end.
+        A folder: ``cases.jsonl`` gets each case as it finishes; ``sweep.csv`` and
+        ``sweep.json`` are written (atomically) at the end or on an interruption.
     units : dict, optional
-        Unit of each output (``{"q": "m^3/s"}``), kept as metadata in the result and its JSON.
+        Unit of each output (``{"q": "m^3/s"}``), kept as metadata in the result and its files.
+    resume : bool
+        Keep the successful cases recorded in ``out/cases.jsonl`` (they must be the same cases)
+        and run only the others.
+    timeout : float, optional
+        Wall-time limit of one case [s]; a case over it is recorded with status ``"timeout"``.
+    check : callable, optional
+        ``check(case)`` raises (e.g. :class:`~pvgraph.ParameterError`) for invalid parameter
+        values; it runs on every case before any case runs.
 
     Returns
     -------
     SweepResult
-        Every case, failed ones included (status ``"failed"``, error type, message and
-        traceback); a failing case never stops the others.
+        Every case, failed ones included (status ``"failed"``, ``"timeout"`` or
+        ``"nonfinite"``, error type, message and traceback); a failing case never stops the
+        others.
 
     Raises
     ------
     SweepError
         ``run`` is not callable or cannot be pickled, ``cases`` is empty or its cases set
-        different parameters, the backend or the worker count is invalid.
+        different parameters, ``check`` refused cases, the backend, the worker count or the
+        timeout is invalid, or ``resume`` finds a record of other cases.
+    SweepInterrupted
+        Ctrl-C; the finished cases are in its ``result`` and in ``out``.
     """
     if not callable(run):
         raise SweepError(f"run must be a callable run(**params) -> dict, got "
@@ -500,34 +593,144 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
                                 or workers < 1):
         raise SweepError(f"workers must be a positive integer, got {workers!r}")
-    workers = workers if workers is not None else _default_workers(len(cases))
+    if timeout is not None:
+        if not (isinstance(timeout, numbers.Real) and math.isfinite(timeout) and timeout > 0):
+            raise SweepError(f"timeout must be a positive number of seconds, got {timeout!r}")
+        if backend == "dask" or not hasattr(signal, "setitimer"):
+            raise SweepError(f"timeout= needs the serial or process backend on a system with "
+                             f"SIGALRM (backend is {backend!r})")
+    if resume and out is None:
+        raise SweepError("resume=True needs out= (the folder holding cases.jsonl)")
+    param_names = list(cases[0])
+    records: dict[int, CaseResult] = {}
+    log_path = None if out is None else os.path.join(os.fspath(out), LOG_NAME)
+    if resume and os.path.exists(log_path):
+        records = {i: r for i, r in _read_log(log_path, cases).items() if r.ok}
+    todo = [i for i in range(len(cases)) if i not in records]
+    if check is not None:
+        _check_values(check, cases, todo)
+    workers = workers if workers is not None else _default_workers(max(len(todo), 1))
     if backend == "process":
-        workers = min(workers, len(cases), MAX_PROCESS_WORKERS)
+        workers = min(workers, max(len(todo), 1), MAX_PROCESS_WORKERS)
         _check_picklable(run, cases)
     tick = _progress_callback(progress, len(cases))
-
-    records: list[CaseResult | None] = [None] * len(cases)
-    done = 0
+    log = _open_log(log_path, cases, param_names, units, records) if log_path else None
+    done = len(records)
 
     def report(res: CaseResult) -> None:
         nonlocal done
         records[res.index] = res
+        if log is not None:
+            log.write(json.dumps(_log_record(res), allow_nan=False, default=str) + "\n")
+            log.flush()
         done += 1
         if tick is not None:
             tick(done, len(cases), res.index)
 
+    def result(wall):
+        res = SweepResult([records[i] for i in sorted(records)], param_names, backend=backend,
+                          wall_time=wall, units=units, n_cases=len(cases))
+        if out is not None:
+            res.save(out)
+        return res
+
     t0 = time.perf_counter()
-    if backend == "serial":
-        _run_serial(run, cases, report)
-    elif backend == "process":
-        _run_process(run, cases, workers, report)
-    else:
-        _run_dask(run, cases, workers, client, report)
-    result = SweepResult(records, list(cases[0]), backend=backend,
-                         wall_time=time.perf_counter() - t0, units=units)
-    if out is not None:
-        result.save(out)
-    return result
+    try:
+        if not todo:
+            pass
+        elif backend == "serial":
+            _run_serial(run, todo, cases, report, timeout)
+        elif backend == "process":
+            _run_process(run, todo, cases, workers, report, timeout)
+        else:
+            _run_dask(run, todo, cases, workers, client, report)
+    except KeyboardInterrupt:
+        if log is not None:
+            log.close()
+        raise SweepInterrupted(result(time.perf_counter() - t0)) from None
+    except BaseException:
+        if log is not None:
+            log.close()
+        raise
+    if log is not None:
+        log.close()
+    return result(time.perf_counter() - t0)
+
+
+def _check_values(check, cases, todo) -> None:
+    bad = []
+    for i in todo:
+        try:
+            check(dict(cases[i]))
+        except PvgraphError as exc:
+            bad.append(f"case {i} {cases[i]}: {exc}")
+        except (ValueError, TypeError) as exc:
+            bad.append(f"case {i} {cases[i]}: {type(exc).__name__}: {exc}")
+    if bad:
+        more = f"\n... and {len(bad) - 5} more" if len(bad) > 5 else ""
+        raise SweepError(f"{len(bad)} of {len(todo)} cases have invalid parameter values; "
+                         f"nothing was run:\n" + "\n".join(bad[:5]) + more)
+
+
+def _log_record(r: CaseResult) -> dict:
+    d = r.to_dict()
+    if d["error"] is None:
+        del d["error"]
+    d["outputs"] = {k: (v if v is not None else repr(r.outputs[k])) for k, v in
+                    d["outputs"].items()}
+    return d
+
+
+def _from_log(d: dict) -> CaseResult:
+    err = d.get("error") or {}
+    outs = {k: float(v) for k, v in d.get("outputs", {}).items()}   # "nan", "inf" included
+    return CaseResult(int(d["index"]), dict(d["params"]), outs, d["status"],
+                      float(d.get("wall_time") or 0.0), err.get("type"), err.get("message"),
+                      err.get("traceback"))
+
+
+def _open_log(path, cases, param_names, units, kept):
+    """Start ``cases.jsonl`` afresh (header, then the kept records) and return it for appending."""
+    folder = os.path.dirname(path)
+    os.makedirs(folder, exist_ok=True)
+    tmp = path + ".new"
+    with open(tmp, "w") as f:
+        f.write(json.dumps({"pvgraph_sweep": LOG_VERSION, "n_cases": len(cases),
+                            "param_names": param_names, "units": dict(units or {}),
+                            "cases": [{k: _json_value(v) for k, v in c.items()}
+                                      for c in cases]}, default=str) + "\n")
+        for i in sorted(kept):
+            f.write(json.dumps(_log_record(kept[i]), default=str) + "\n")
+    os.replace(tmp, path)
+    return open(path, "a")
+
+
+def _read_log(path, cases) -> dict[int, CaseResult]:
+    """The records of ``cases.jsonl``, checked to belong to the same ``cases``."""
+    with open(path) as f:
+        lines = f.read().splitlines()
+    try:
+        head = json.loads(lines[0])
+    except (IndexError, ValueError):
+        raise SweepError(f"{path} is not a sweep record (no header line); remove it or use "
+                         f"another output folder") from None
+    same = [{k: _json_value(v) for k, v in c.items()} for c in cases]
+    if head.get("n_cases") != len(cases) or \
+            json.loads(json.dumps(same, default=str)) != head.get("cases"):
+        raise SweepError(f"--resume: {path} records another sweep ({head.get('n_cases')} cases "
+                         f"of {head.get('param_names')}); these are {len(cases)} cases of "
+                         f"{list(cases[0])}. Use the same arguments, or a new output folder")
+    out = {}
+    for k, line in enumerate(lines[1:], start=2):
+        try:
+            r = _from_log(json.loads(line))
+        except (ValueError, KeyError, TypeError):
+            if k == len(lines):      # a last line cut short by a crash: that case reruns
+                continue
+            raise SweepError(f"{path} line {k} is not a case record; remove the file or use "
+                             f"another output folder") from None
+        out[r.index] = r
+    return out
 
 
 # --------------------------------------------------------------------------------------------

@@ -4,10 +4,7 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
-from circuits.pvg32.modules import build_pvb, opening_areas
-from circuits.pvg32.parameters import report_tuned
-from pvgraph.plotting import (draw_circuit, plot_bode, plot_opening_areas, plot_solution,
-                              plot_step_response)
+from pvgraph.plotting import draw_circuit, plot_bode, plot_solution, plot_step_response
 from pvgraph.simulate import simulate
 from components import FlowSource, Orifice, Tank, VolumeNode
 from pvgraph import Circuit
@@ -46,20 +43,6 @@ def test_misspelled_variable_fails_before_writing(tmp_path):
     assert not (tmp_path / "bad.png").exists()
 
 
-def test_opening_areas_are_the_ones_the_model_uses(tmp_path):
-    p = report_tuned()
-    areas = opening_areas(p)
-    assert set(areas) == {"A1", "A2", "A3", "A_H"}
-    pvb = build_pvb(p)
-    pa = pvb["PA"].params                                  # P -> A edge, x > 0 half of A_H
-    a_h = areas["A_H"]
-    assert np.allclose(pa.A_table, np.where(a_h.x > 0, a_h.area, 0.0))
-    # A2 = pi D x_k (eq. 4.38)
-    a2 = areas["A2"]
-    assert np.allclose(a2.area, np.pi * p.compensator.opening_diameter * a2.x)
-    _png(plot_opening_areas(areas.values(), tmp_path / "areas.png"))
-
-
 def test_bode_step_and_circuit_drawings(tmp_path):
     f = np.logspace(-1, 2, 50)
     h = 1.0 / (1j * 2 * np.pi * f + 1.0)
@@ -68,6 +51,36 @@ def test_bode_step_and_circuit_drawings(tmp_path):
     _png(plot_step_response([(t, 1 - np.exp(-5 * t), "first order")], tmp_path / "s.png"))
     _png(draw_circuit(_demo(), tmp_path / "c.png"))
     dot = draw_circuit(_demo(), tmp_path / "c.dot", fmt="dot")
-    text = open(dot).read()
+    with open(dot) as f:
+        text = f.read()
     assert "digraph" in text or "graph" in text
     assert "orifice" in text and "tank" in text
+
+
+def test_schematic_groups_sub_circuits_and_styles_domains(tmp_path):
+    from components.mechanical import Fixed, SpoolMass
+    from pvgraph.plotting import _schematic
+
+    outer = Circuit("outer")
+    inner = outer.add("bench", _demo())
+    inner.expose("P", inner["node"].port)
+    mass = outer.add("mass", SpoolMass(m=0.1))
+    wall = outer.add("wall", Fixed())
+    outer.connect(mass.flange, wall.flange)
+    nodes, edges, groups = _schematic(outer)
+    assert groups == ["", "bench"]
+    assert nodes["bench.orifice"] == ("orifice", "Orifice", "bench")
+    junctions = [n for n, v in nodes.items() if v[1] == "junction"]
+    assert len(junctions) == 1                       # pump, node and orifice meet at one node
+    assert sorted(a for a, b, d in edges if b == junctions[0]) == \
+        ["bench.node", "bench.orifice", "bench.pump"]
+    assert ("mass", "wall", "mechanical") in edges
+    assert {d for _, _, d in edges} == {"hydraulic", "mechanical"}
+    dot = draw_circuit(outer, tmp_path / "o.dot")
+    with open(dot) as f:
+        text = f.read()
+    assert 'subgraph "cluster_bench"' in text and "style=dashed" in text
+    svg = draw_circuit(outer, tmp_path / "o.svg")
+    with open(svg) as f:
+        assert "<svg" in f.read()
+    _png(draw_circuit(outer, tmp_path / "o.png"))

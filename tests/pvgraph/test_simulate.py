@@ -128,7 +128,8 @@ def test_solution_csv_is_complete(tmp_path):
     sol = simulate(demo(), 1e-2, t_eval=np.linspace(0, 1e-2, 5))
     path = tmp_path / "out" / "run.csv"
     sol.to_csv(path, ["node.port.p", "orifice.q"])
-    rows = list(csv.reader(open(path)))
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
     assert rows[0] == ["t [s]", "node.port.p [Pa]", "orifice.q [m^3/s]"]
     assert len(rows) == 6
     assert float(rows[-1][1]) == pytest.approx(sol.final("node.port.p"))

@@ -1,0 +1,131 @@
+"""Sweeps keep their results: a record per finished case, resume, time limits, Ctrl-C,
+SystemExit and non-finite outputs inside cases, invalid values refused before anything runs."""
+
+import json
+import math
+import os
+import sys
+import time
+
+import pytest
+
+from pvgraph.analysis.sweep import SweepError, SweepInterrupted, grid, sweep
+from pvgraph.errors import ParameterError
+
+
+def square(x):
+    """A case with a known answer: y = x^2."""
+    return {"y": x * x}
+
+
+def misbehaving(x):
+    """x = 1: SystemExit; x = 2: NaN; x = 3: sleeps past any reasonable limit."""
+    if x == 1:
+        sys.exit(4)
+    if x == 2:
+        return {"y": math.nan}
+    if x == 3:
+        time.sleep(30)
+    return {"y": x * x}
+
+
+def counted(x, folder):
+    """y = x^2, leaving a file per call so a test can count the runs; Ctrl-C at x = 3."""
+    with open(os.path.join(folder, f"ran-{x}"), "a") as f:
+        f.write("x")
+    if x == 3 and not os.path.exists(os.path.join(folder, "no-interrupt")):
+        raise KeyboardInterrupt
+    return {"y": x * x}
+
+
+def positive(case):
+    if case["x"] < 0:
+        raise ParameterError(f"x = {case['x']}: must be >= 0")
+
+
+def _lines(path):
+    with open(path) as f:
+        return [json.loads(line) for line in f]
+
+
+@pytest.mark.parametrize("backend", ["serial", "process"])
+def test_exit_nan_and_hang_are_recorded_and_the_rest_run(backend, tmp_path):
+    result = sweep(misbehaving, grid({"x": [0, 1, 2, 3, 4]}), backend=backend, workers=2,
+                   timeout=1.0, out=tmp_path)
+    status = [r.status for r in result]
+    assert status == ["ok", "failed", "nonfinite", "timeout", "ok"]
+    assert result[1].error_type == "SystemExit"
+    assert "output(s) y not finite: nan" in result[2].error_message
+    assert result[3].wall_time < 5.0                        # stopped at the limit, not 30 s
+    assert [result[0].outputs["y"], result[4].outputs["y"]] == [0.0, 16.0]
+    assert [r.index for r in result.failed] == [1, 2, 3]
+    records = _lines(tmp_path / "cases.jsonl")[1:]
+    assert sorted(r["index"] for r in records) == [0, 1, 2, 3, 4]
+    with open(tmp_path / "sweep.json") as f:
+        data = json.load(f)
+    assert [c["status"] for c in data["cases"]] == status and data["complete"] is True
+    with open(tmp_path / "sweep.csv") as f:
+        assert [line.split(",")[1] for line in f.read().splitlines()[1:]] == status
+
+
+def test_ctrl_c_keeps_the_finished_cases_and_resume_runs_only_the_rest(tmp_path):
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    cases = grid({"x": [0, 1, 2, 3, 4, 5], "folder": [str(runs)]})
+    with pytest.raises(SweepInterrupted) as exc:
+        sweep(counted, cases, backend="serial", out=tmp_path / "out")
+    partial = exc.value.result
+    assert [r.index for r in partial] == [0, 1, 2] and partial.n_cases == 6
+    assert not partial.complete
+    with open(tmp_path / "out" / "sweep.json") as f:
+        data = json.load(f)
+    assert data["n_finished"] == 3 and data["complete"] is False
+    with open(tmp_path / "out" / "sweep.csv") as f:
+        assert len(f.read().splitlines()) == 1 + 3          # the CSV agrees with the JSON
+    (runs / "no-interrupt").touch()
+    result = sweep(counted, cases, backend="serial", out=tmp_path / "out", resume=True)
+    assert result.complete and [r.outputs["y"] for r in result] == [0, 1, 4, 9, 16, 25]
+    ran = {p.name: p.read_text() for p in runs.iterdir() if p.name.startswith("ran-")}
+    assert ran == {"ran-0": "x", "ran-1": "x", "ran-2": "x", "ran-3": "xx", "ran-4": "x",
+                   "ran-5": "x"}                            # the finished cases ran once
+
+
+def test_resume_refuses_the_record_of_another_sweep(tmp_path):
+    sweep(square, grid({"x": [1.0, 2.0]}), backend="serial", out=tmp_path)
+    with pytest.raises(SweepError, match="records another sweep"):
+        sweep(square, grid({"x": [1.0, 3.0]}), backend="serial", out=tmp_path, resume=True)
+
+
+def test_a_last_line_cut_short_reruns_that_case(tmp_path):
+    sweep(square, grid({"x": [1.0, 2.0, 3.0]}), backend="serial", out=tmp_path)
+    log = tmp_path / "cases.jsonl"
+    text = log.read_text().splitlines()
+    log.write_text("\n".join(text[:-1]) + "\n" + text[-1][:20])   # a crash mid-write
+    result = sweep(square, grid({"x": [1.0, 2.0, 3.0]}), backend="serial", out=tmp_path,
+                   resume=True)
+    assert [r.outputs["y"] for r in result] == [1.0, 4.0, 9.0]
+
+
+def test_invalid_values_are_refused_before_any_case_runs(tmp_path):
+    with pytest.raises(SweepError) as exc:
+        sweep(square, grid({"x": [1.0, -2.0, -3.0]}), backend="serial", check=positive,
+              out=tmp_path)
+    msg = str(exc.value)
+    assert "2 of 3 cases have invalid parameter values; nothing was run" in msg
+    assert "case 1 {'x': -2.0}: x = -2.0: must be >= 0" in msg
+    assert not os.listdir(tmp_path)
+
+
+def test_files_get_the_users_umask(tmp_path):
+    old = os.umask(0o022)
+    try:
+        sweep(square, grid({"x": [1.0]}), backend="serial", out=tmp_path)
+    finally:
+        os.umask(old)
+    for name in ("sweep.csv", "sweep.json", "cases.jsonl"):
+        assert os.stat(tmp_path / name).st_mode & 0o777 == 0o644
+
+
+def test_timeout_needs_a_backend_that_can_stop_a_case():
+    with pytest.raises(SweepError, match="timeout= needs the serial or process backend"):
+        sweep(square, grid({"x": [1.0]}), backend="dask", timeout=1.0)

@@ -1,0 +1,95 @@
+"""Quantities with units at the parameter boundary, and the display convention."""
+
+import math
+
+import pytest
+
+from components import FlowSource, Orifice, Tank, VolumeNode
+from components.signal.sources import TimeTable
+from pvgraph import Circuit, ParameterError
+from pvgraph.simulate import simulate
+from pvgraph.units import (BAR, LPM, UnitError, declared_unit, display, format_value, lpm,
+                           litre, mm2, parse_unit, to_unit)
+
+
+@pytest.mark.parametrize("text, unit, si", [
+    ("150 bar", "Pa", 150e5), ("0.5 L", "m^3", 0.5e-3), ("10 L/min", "m^3/s", 10 / 60e3),
+    ("2.2 mm^2", "m^2", 2.2e-6), ("2.2 mm2", "m^2", 2.2e-6), ("8 cm^3", "m^3", 8e-6),
+    ("3 MPa", "Pa", 3e6), ("1e5", "Pa", 1e5), ("-3 mm", "m", -3e-3),
+    ("0.45 L/(min bar)", "m^3/(s Pa)", 0.45e-3 / 60 / 1e5), ("100 psi", "Pa", 689475.7293168361),
+    ("20 N s/m", "N s/m", 20.0), ("3000 rpm", "rad/s", 100 * math.pi),
+])
+def test_quantity_strings_convert_to_si(text, unit, si):
+    assert to_unit(text, unit) == pytest.approx(si, rel=1e-14)
+
+
+def test_conversion_to_a_declared_non_si_unit():
+    # a field declared in %/mm takes "2 %/m" as 0.002 %/mm
+    assert to_unit("2 %/m", "%/mm") == pytest.approx(0.002, rel=1e-14)
+    assert parse_unit("L/min")[0] == LPM and parse_unit("bar")[0] == BAR
+
+
+def test_wrong_dimension_is_refused_by_name():
+    with pytest.raises(ParameterError, match=r"V = '0.5 bar' is a pressure, but V is a volume"):
+        VolumeNode(V="0.5 bar")
+    with pytest.raises(UnitError, match="unknown unit 'furlong'"):
+        parse_unit("furlong")
+
+
+def test_parameters_with_units_give_the_same_model_as_the_helpers():
+    assert VolumeNode(V="0.5 L").params.V == litre(0.5)
+    assert FlowSource(Q="10 L/min").params.Q == pytest.approx(lpm(10), rel=1e-15)
+    assert Orifice(A="2 mm^2").params.A == mm2(2)
+    assert Orifice(A=2e-6).params.A == 2e-6          # plain numbers stay SI
+
+
+def test_a_circuit_in_units_reaches_the_orifice_law():
+    """Pump into a volume drained by an orifice: steady p = rho/2 (Q / (Cd A))^2."""
+    c = Circuit("units")
+    pump = c.add("pump", FlowSource(Q="10 L/min"))
+    node = c.add("node", VolumeNode(V="0.5 L"))
+    orf = c.add("orifice", Orifice(A="2 mm^2", Cd=0.6, rho="870 kg/m^3"))
+    tank = c.add("tank", Tank())
+    c.connect(pump.port, node.port, orf.a)
+    c.connect(orf.b, tank.port)
+    sol = simulate(c, 1.0)
+    q = 10 / 60e3
+    p_expected = 870 / 2 * (q / (0.6 * 2e-6)) ** 2
+    assert sol.final("node.port.p") == pytest.approx(p_expected, rel=1e-3)
+
+
+def test_pint_quantities_convert():
+    pint = pytest.importorskip("pint")
+    u = pint.UnitRegistry()
+    assert VolumeNode(V=u.Quantity(500, "cm^3")).params.V == pytest.approx(5e-4, rel=1e-14)
+    assert FlowSource(Q=10 * u.liter / u.minute).params.Q == pytest.approx(lpm(10), rel=1e-14)
+    with pytest.raises(ParameterError, match="is a length, but V is a volume"):
+        VolumeNode(V=u.Quantity(3, "m"))
+
+
+def test_sequence_fields_take_units_elementwise():
+    t = TimeTable(t=("0 s", "500 ms", "1 s"), y=(0.0, 1.0, 1.0))
+    assert t.params.t == (0.0, 0.5, 1.0)
+
+
+@pytest.mark.parametrize("value, message", [
+    (True, "True is a bool, not a number"),
+    (5e-324, "outside the magnitudes a model can compute with"),
+    (1e305, "outside the magnitudes a model can compute with"),
+    ("2 bananas", "unknown unit 'bananas'"),
+])
+def test_nonsense_values_get_named_errors(value, message):
+    with pytest.raises(ParameterError, match=r"A = .*" + message.replace("(", r"\(")):
+        Orifice(A=value)
+
+
+def test_declared_units_and_display():
+    assert declared_unit("Opening area [m^2] (report 4.3)") == "m^2"
+    assert declared_unit("Gain [unit of y / unit of u]") is None
+    assert display(150e5, "Pa") == (150.0, "bar")
+    assert display(150e5, "Pa", si=True) == (150e5, "Pa")
+    v, u = display(lpm(16.3), "m^3/s")
+    assert u == "L/min" and v == pytest.approx(16.3, rel=1e-14)
+    assert format_value(7e-3, "m") == "7 mm"
+    assert format_value(1.0, "N") == "1 N"
+    assert math.isclose(display(2e-3, "m^3")[0], 2.0)
