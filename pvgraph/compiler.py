@@ -5,15 +5,22 @@ Pipeline
 1. Flatten the hierarchy; every variable gets its dotted name (``pvg.pvb.main_spool.flange.x``).
 2. Build the port graph (networkx) and take its connected components as connection sets. Per
    set: across variables equal, through variables sum to zero; signals have exactly one driver.
-3. Trace every component's equations once into expression graphs (exact incidence).
+3. Trace every component's equations once into expression graphs (exact incidence). Numeric
+   parameters are traced as parameter symbols (runtime values of the compiled system); those
+   the equations turn into plain numbers are recorded as structural.
 4. Alias elimination: equations of the form ``a*u + b*v + c = 0`` or ``a*u + c = 0`` in plain
    variables remove one unknown each (connection equalities, two-port flow balances, fixed
-   pressures). Every eliminated name stays addressable in results.
+   pressures); ``b`` and ``c`` may depend on parameters, the eliminated unknown's ``a`` is a
+   constant. Every eliminated name stays addressable in results.
 5. Checks: equations equal unknowns; a maximum bipartite matching proves the pencil
    dF/dy + c dF/dy' structurally regular; a second matching on (derivatives of differential
    variables, algebraic variables) proves index <= 1. Failures name equations and variables.
-6. Emit the residual, the Jacobian values on a fixed sparse pattern, event functions and derived
-   outputs as generated Python (:mod:`pvgraph.codegen`).
+6. Differentiate each residual row in one reverse pass (all its partial derivatives at once),
+   move the parametric subexpressions into a ``derive`` function evaluated once per parameter
+   set, and emit the residual, the Jacobian values on a fixed sparse pattern, all event
+   functions as one function, and (when first needed) the derived outputs and dF/dp as
+   generated Python (:mod:`pvgraph.codegen`). Every stage costs time linear in the size of the
+   circuit, connection sets of any width included.
 
 Parallel volumes on one node need no special treatment: the node's pressure is one unknown after
 alias elimination, each volume contributes its own flow unknown, and the DAE stays index one.

@@ -25,6 +25,8 @@ what makes a parameter structural).
 
 from __future__ import annotations
 
+import functools
+import inspect
 import math
 import re
 import types
@@ -382,9 +384,11 @@ class _ModelView:
                                                          self._prefix + name)
                 return self._array(full, value)
             return value
-        attr = getattr(cls, name, None)
+        attr = inspect.getattr_static(cls, name, None)
         if isinstance(attr, property):
             return attr.fget(self)
+        if isinstance(attr, functools.cached_property):
+            return attr.func(self)
         if isinstance(attr, types.FunctionType):
             return types.MethodType(attr, self)
         return getattr(model, name)

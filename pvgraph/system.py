@@ -3,7 +3,10 @@
 A :class:`System` holds generated functions for the residual, the Jacobian values on a fixed
 sparse pattern (dF/dy + c dF/dy'), event functions and derived outputs, together with everything
 needed to address results by name: variable names, units, nominal magnitudes, the split into
-differential and algebraic variables, and the aliases removed by the compiler.
+differential and algebraic variables, and the aliases removed by the compiler. Parameters are
+runtime values (the vector ``P`` every generated function takes): one compiled system runs with
+other parameter values (:meth:`System.with_params`), and gives the parameter derivative dF/dp
+(:meth:`System.parameter_jacobian`) for sensitivities.
 """
 
 from __future__ import annotations
@@ -77,6 +80,10 @@ class System:
         A label per residual row naming the component (or node) it comes from.
     modes : list of float
         Current values of the discrete modes (changed by events).
+    parameters : dict
+        Runtime parameters by name (``"orifice.A"``): :class:`~pvgraph.component.ParameterInfo`
+        with value, unit, description and, for a structural one, why. The generated functions
+        take them as the vector ``P``; :meth:`with_params` runs the same code with other values.
     """
 
     DENSE_MAX = 120  # above this many unknowns the Jacobian is handed to the solver sparse

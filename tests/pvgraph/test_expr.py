@@ -73,6 +73,32 @@ def test_derivative_matches_central_differences(chain, a0, a1):
         assert evaluate(d, pt) == pytest.approx(fd, rel=1e-5, abs=1e-7)
 
 
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.sampled_from(range(len(FUNCS))), min_size=1, max_size=4),
+       st.floats(0.2, 2.0), st.floats(-1.5, 1.5))
+def test_reverse_pass_gives_every_partial_of_forward_differentiation(chain, a0, a1):
+    """One adjoint pass (gradient) equals one forward pass per variable (differentiate)."""
+    x0, x1 = y(0), y(1)
+    e = x0 * x1 + x0 * E.Expr("param", (), 0)
+    for k in chain:
+        e = FUNCS[k](e) if k != 0 else E.sqrt(e * e + 1.0)
+    grads = E.gradient(e, ("y", "param"))
+    assert set(grads) == {("y", 0), ("y", 1), ("param", 0)}
+    for j in (0, 1):
+        forward = evaluate(E.substitute([E.differentiate(e, ("y", j))], _p_is_one)[0], [a0, a1])
+        reverse = evaluate(E.substitute([grads[("y", j)]], _p_is_one)[0], [a0, a1])
+        assert reverse == pytest.approx(forward, rel=1e-12, abs=1e-14)
+    # with u = x0 x1 + x0 p: d/dp = x0 d/du and d/dx0 = (x1 + p) d/du, so at p = 1
+    # (a1 + 1) d/dp = a0 d/dx0
+    dp = evaluate(E.substitute([grads[("param", 0)]], _p_is_one)[0], [a0, a1])
+    dx0 = evaluate(E.substitute([grads[("y", 0)]], _p_is_one)[0], [a0, a1])
+    assert (a1 + 1.0) * dp == pytest.approx(a0 * dx0, rel=1e-9, abs=1e-12)
+
+
+def _p_is_one(node):
+    return E.const(1.0) if node.op == "param" else None
+
+
 def test_table_pchip_is_monotone_and_exact_at_knots():
     xs = np.array([0.0, 1.0, 2.0, 3.0, 5.0])
     ys = np.array([0.0, 0.1, 2.0, 2.1, 10.0])
