@@ -143,3 +143,36 @@ def test_fully_algebraic_circuit_still_reports():
     c.connect(orf.b, c.add("tank", Tank()).port)
     sol = simulate(c, 1.0)
     assert sol.final("orifice.a.p") == pytest.approx(Q / K)
+
+
+@pytest.mark.slow
+def test_all_rig_scenarios_agree_on_both_backends():
+    """The 19 PVG 32 rig scenarios run on SUNDIALS IDA as on pvgraph's solver, same answers."""
+    pytest.importorskip("sksundae")
+    from circuits.scenarios import all_scenarios
+    from circuits.validation import run_scenario
+
+    for scenario in all_scenarios():
+        ours = run_scenario(scenario, solver="pvgraph")
+        ida = run_scenario(scenario, solver="ida")
+        for q, value in ours.simulated.items():
+            # steady flows [m^3/s] within 0.5 %, pressures [Pa] within 0.5 % or 0.05 bar
+            scale = 5e3 if q.startswith("P") else 1e-7
+            assert ida.simulated[q] == pytest.approx(value, rel=5e-3, abs=scale), \
+                (scenario.name, q)
+
+
+@pytest.mark.slow
+def test_cli_simulates_test_2_on_sundials_ida(capsys):
+    pytest.importorskip("sksundae")
+    from pvgraph.cli import main
+
+    import re
+
+    finals = {}
+    for solver in ("ida", "pvgraph"):
+        assert main(["simulate", "test-2", "--solver", solver]) == 0
+        out = capsys.readouterr().out
+        finals[solver] = float(re.search(r"load\.f\.port\.p\s+final\s+(\S+) Pa", out).group(1))
+        assert int(re.search(r"steps (\d+)", out).group(1)) > 10
+    assert finals["ida"] == pytest.approx(finals["pvgraph"], rel=5e-3)
