@@ -95,6 +95,10 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
     jac_sparsity : sparse matrix or array, optional
         Pattern of ``dF/dy + c dF/dy'``; finite differences then perturb groups of
         structurally independent columns together, and systems with n >= 100 use SuperLU.
+        Without ``jac`` and ``jac_sparsity``, systems with n >= 100 have their pattern
+        detected once from dense differences at two nearby points (2 n residual calls).
+        Difference increments are sqrt(eps) max(|y|, atol / rtol): ``atol / rtol`` is
+        taken as each variable's typical size.
     events : list of Event or scipy-style callables, optional
         Zero crossings to locate; see ``Event``.
     t_eval : array_like, optional

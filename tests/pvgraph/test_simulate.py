@@ -176,3 +176,22 @@ def test_cli_simulates_test_2_on_sundials_ida(capsys):
         finals[solver] = float(re.search(r"load\.f\.port\.p\s+final\s+(\S+) Pa", out).group(1))
         assert int(re.search(r"steps (\d+)", out).group(1)) > 10
     assert finals["ida"] == pytest.approx(finals["pvgraph"], rel=5e-3)
+
+
+@pytest.mark.parametrize("solver", ["pvgraph", "ida"])
+def test_step_sampled_at_its_time_has_the_new_value(solver):
+    if solver == "ida":
+        pytest.importorskip("sksundae")
+    from components.signal import FirstOrderLag, Step
+
+    c = Circuit("step")
+    src = c.add("src", Step(height=2.0, offset=-1.0, t_step=0.1))
+    lag = c.add("lag", FirstOrderLag(tau=0.02))
+    c.connect(src.y, lag.u)
+    sol = simulate(c, 0.3, rtol=1e-7, t_eval=[0.05, 0.1, 0.2], solver=solver)
+    assert sol.t.tolist() == [0.05, 0.1, 0.2]
+    assert sol["src.y"].tolist() == [-1.0, 1.0, 1.0]
+    # the lag is continuous through the step: -1 + exp(-t/tau) at t_step, then towards 1
+    y_step = -(1.0 - np.exp(-0.1 / 0.02))
+    assert sol["lag.y"][1] == pytest.approx(y_step, abs=1e-6)
+    assert sol["lag.y"][2] == pytest.approx(1.0 + (y_step - 1.0) * np.exp(-0.1 / 0.02), abs=1e-5)
