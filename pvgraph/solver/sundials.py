@@ -24,6 +24,9 @@ How the backend drives IDA:
   (SuperLU_MT) with the user Jacobian's entries in the pattern's CSC order.
 * SUNDIALS' own messages (printed by scikit-sundae) are captured and put into the
   ``SolverError`` raised on failure, not printed.
+* When IDA fails a step (repeated Newton or error-test failures, typically on the kink of a
+  friction or table law), the backend restarts it from the last accepted step at order 1,
+  up to ``MAX_FAILURE_RESTARTS`` times and only after progress; then it raises.
 
 Differences from ``solve_dae`` worth knowing: scikit-sundae does not switch on IDA's
 suppressalg option, so algebraic variables stay in IDA's local error test; ``nlu``,
@@ -54,6 +57,7 @@ SOLVER_NAME = "SUNDIALS IDA"
 TIME_SCALE_FRACTION = 0.5   # first step at most this fraction of the fastest time scale
 IDA_SUCCESS, IDA_TSTOP_RETURN, IDA_ROOT_RETURN = 0, 1, 2
 SPARSE_WARNING = "Custom sparse Jacobian approximation will be ignored"
+MAX_FAILURE_RESTARTS = 20   # restarts from the last step after an IDA step failure
 
 
 def _import_sksundae():
@@ -237,6 +241,8 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
     mode = calc_initial
     t_start = t0
     solver = None
+    restarted = False
+    n_restarts, t_failed = 0, -np.inf
     with contextlib.redirect_stdout(captured), warnings.catch_warnings(), \
             np.errstate(all="ignore"):
         warnings.filterwarnings("ignore", message=SPARSE_WARNING)
@@ -253,18 +259,20 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                 raise failure("the residual is not finite", t_start) from None
             except RuntimeError as exc:
                 raise failure(str(exc), t_start) from exc
-            if t_eval is None:
+            if t_eval is None and not restarted:
                 ts.append(t_start)
                 ys.append(y.copy())
                 yps.append(yp.copy())
-            else:
+            elif t_eval is not None:
                 while i_eval < t_eval.size and t_eval[i_eval] <= t_start:
                     ts.append(t_eval[i_eval])
                     ys.append(y.copy())
                     yps.append(yp.copy())
                     i_eval += 1
             t_last = t_start
+            last_y, last_yp = y.copy(), yp.copy()
             hit = None
+            restarted = False
             while True:
                 if nsteps >= max_steps:
                     raise SolverError(
@@ -281,7 +289,14 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                 except _NonFinite:
                     raise failure("the residual is not finite", res_cb.bad[0]) from None
                 if out.status < 0:
-                    raise failure(out.message, float(t_last))
+                    if n_restarts >= MAX_FAILURE_RESTARTS or t_last <= t_failed:
+                        raise failure(out.message, float(t_last))
+                    # restart from the last step at order 1 (a kink of a friction or table
+                    # law defeats the history; pvgraph's solver does not grow the step there)
+                    n_restarts += 1
+                    t_failed = t_last
+                    restarted = True
+                    break
                 tn = float(out.t)
                 if out.status == IDA_ROOT_RETURN:
                     info = np.asarray(out.i_events[-1])
@@ -318,9 +333,14 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                     ys.append(out.y.copy())
                     yps.append(out.yp.copy())
                 t_last = tn
+                last_y, last_yp = out.y.copy(), out.yp.copy()
                 if hit is not None or out.status == IDA_TSTOP_RETURN or tn >= t_end:
                     break
             nje += int(out.njev or 0)
+            if restarted:
+                t_start, y, yp = t_last, last_y, last_yp
+                mode = "algebraic"
+                continue
             if hit is None:
                 break
             te, i, ev, ye, ype = hit

@@ -144,3 +144,55 @@ def test_fully_algebraic_circuit_still_reports():
     c.connect(orf.b, c.add("tank", Tank()).port)
     sol = simulate(c, 1.0)
     assert sol.final("orifice.a.p") == pytest.approx(Q / K)
+
+
+@pytest.mark.slow
+def test_all_rig_scenarios_agree_on_both_backends():
+    """The 19 PVG 32 rig scenarios run on SUNDIALS IDA as on pvgraph's solver, same answers."""
+    pytest.importorskip("sksundae")
+    from circuits.scenarios import all_scenarios
+    from circuits.validation import run_scenario
+
+    for scenario in all_scenarios():
+        ours = run_scenario(scenario, solver="pvgraph")
+        ida = run_scenario(scenario, solver="ida")
+        for q, value in ours.simulated.items():
+            # steady flows [m^3/s] within 0.5 %, pressures [Pa] within 0.5 % or 0.05 bar
+            scale = 5e3 if q.startswith("P") else 1e-7
+            assert ida.simulated[q] == pytest.approx(value, rel=5e-3, abs=scale), \
+                (scenario.name, q)
+
+
+@pytest.mark.slow
+def test_cli_simulates_test_2_on_sundials_ida(capsys):
+    pytest.importorskip("sksundae")
+    from pvgraph.cli import main
+
+    import re
+
+    finals = {}
+    for solver in ("ida", "pvgraph"):
+        assert main(["simulate", "test-2", "--solver", solver]) == 0
+        out = capsys.readouterr().out
+        finals[solver] = float(re.search(r"load\.f\.port\.p\s+final\s+(\S+) Pa", out).group(1))
+        assert int(re.search(r"steps (\d+)", out).group(1)) > 10
+    assert finals["ida"] == pytest.approx(finals["pvgraph"], rel=5e-3)
+
+
+@pytest.mark.parametrize("solver", ["pvgraph", "ida"])
+def test_step_sampled_at_its_time_has_the_new_value(solver):
+    if solver == "ida":
+        pytest.importorskip("sksundae")
+    from components.signal import FirstOrderLag, Step
+
+    c = Circuit("step")
+    src = c.add("src", Step(height=2.0, offset=-1.0, t_step=0.1))
+    lag = c.add("lag", FirstOrderLag(tau=0.02))
+    c.connect(src.y, lag.u)
+    sol = simulate(c, 0.3, rtol=1e-7, t_eval=[0.05, 0.1, 0.2], solver=solver)
+    assert sol.t.tolist() == [0.05, 0.1, 0.2]
+    assert sol["src.y"].tolist() == [-1.0, 1.0, 1.0]
+    # the lag is continuous through the step: -1 + exp(-t/tau) at t_step, then towards 1
+    y_step = -(1.0 - np.exp(-0.1 / 0.02))
+    assert sol["lag.y"][1] == pytest.approx(y_step, abs=1e-6)
+    assert sol["lag.y"][2] == pytest.approx(1.0 + (y_step - 1.0) * np.exp(-0.1 / 0.02), abs=1e-5)

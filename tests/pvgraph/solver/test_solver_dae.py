@@ -39,7 +39,8 @@ def test_inconsistent_start_is_corrected(rtol, with_jac):
     # global error in tolerance units of each component's scale (y1 crosses zero near t=4)
     err = np.abs(res.y - ref) / (rtol * np.max(np.abs(ref), axis=0) + atol)
     assert err.max() < 20.0
-    assert res.stats["nsteps"] < {1e-4: 60, 1e-6: 120, 1e-8: 250}[rtol]
+    # algebraic y2 in the error test (the default, as in IDA): about 1.4x IDA's 95/172/503 steps
+    assert res.stats["nsteps"] < {1e-4: 140, 1e-6: 240, 1e-8: 700}[rtol]
 
 
 def test_algebraic_mask_forms_are_equivalent():

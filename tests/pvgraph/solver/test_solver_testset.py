@@ -64,7 +64,9 @@ def test_akzo_nobel_against_ida(tol):
 def test_transistor_amplifier_against_ida(tol):
     ours, ida, m = compare_with_ida(TRANSISTOR, tol)
     assert m > -np.log10(tol) - 1.0
-    assert ours.stats["nre"] <= 1.3 * ida.stats["nre"]
+    # step growth right after a failure (IDA's rule) costs residual calls here (1.35x IDA's
+    # at 1e-6) but saves half the steps at 1e-8 (benchmarks/RESULTS.md)
+    assert ours.stats["nre"] <= 1.4 * ida.stats["nre"]
 
 
 @pytest.mark.slow
@@ -75,7 +77,7 @@ def test_transistor_amplifier_tight_tolerances(tol):
 
 def test_akzo_with_suppressed_algebraic_variable():
     res = solve_dae(AKZO.residual, AKZO.t_span, AKZO.y0, AKZO.yp0, rtol=1e-6, atol=1e-6,
-                    jac=AKZO.jac, algebraic=AKZO.algebraic)
+                    jac=AKZO.jac, algebraic=AKZO.algebraic, suppress_alg=True)
     assert mescd(res.y[-1], AKZO.y_ref, 1e-6, 1e-6) > 5.0
 
 

@@ -1,0 +1,191 @@
+"""Work-precision on the Bari IVP Test Set: pvgraph against SUNDIALS IDA and CasADi IDAS.
+
+For every problem of ``pvgraph.solver.testset`` and rtol in 1e-4, 1e-6, 1e-8 (the Ring
+Modulator 1e-4 and 1e-6 only) with the test set's atol, three solvers start from the same
+consistent values and report, in one run:
+
+* **pvgraph**: ``solve_dae`` with default options (the problem's algebraic list, analytic
+  Jacobian, output at every step);
+* **IDA**: SUNDIALS IDA through scikit-sundae's own ``solve`` (its C loop, Python residual
+  and Jacobian callbacks, algebraic variables in the error test: IDA's defaults);
+* **IDAS**: CasADi's IDAS on the same residual written in SX (``residual_lib``), exact AD
+  Jacobians, compiled evaluation in CasADi's virtual machine. The Transistor Amplifier,
+  whose mass matrix is not diagonal, has no semi-explicit form here and is left out.
+
+Columns: steps, residual evaluations (nre), mescd at t_end, median wall time over
+``--repeats`` runs (interleaved) and the ratios pvgraph / IDA and pvgraph / IDAS.
+With ``--variants`` pvgraph is also run with ``suppress_alg`` and ``NO_GROWTH_AFTER_FAILURE``
+switched (steps and mescd, to decide the defaults).
+
+Usage::
+
+    python benchmarks/bench_testset.py [--repeats 3] [--variants] [--problems hires,e5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from _machine import machine  # noqa: E402
+from pvgraph.solver import ida as ida_module  # noqa: E402
+from pvgraph.solver import solve_dae  # noqa: E402
+from pvgraph.solver.testset import PROBLEMS, mescd  # noqa: E402
+
+TOLS = (1e-4, 1e-6, 1e-8)
+LONG_TOLS = (1e-4, 1e-6)
+
+
+def run_pvgraph(p, tol, suppress_alg=None, no_growth=None):
+    """solve_dae with its defaults (the two options only when given)."""
+    kw = {} if suppress_alg is None else {"suppress_alg": suppress_alg}
+    if no_growth is not None:
+        kw["no_growth_after_failure"] = no_growth
+    t = time.perf_counter()
+    res = solve_dae(p.residual, p.t_span, p.y0, p.yp0, rtol=tol, atol=p.atol(tol), jac=p.jac,
+                    algebraic=p.algebraic, calc_initial=None, max_steps=10**7, **kw)
+    return time.perf_counter() - t, res.stats["nsteps"], res.stats["nre"], res.y[-1]
+
+
+def make_ida(p, tol):
+    import sksundae
+    n = p.y0.size
+
+    def resfn(t, y, yp, res):
+        res[:] = p.residual(t, y, yp)
+
+    def jacfn(t, y, yp, res, cj, jj):
+        jj[:, :] = p.jac(t, y, yp, cj)
+
+    solver = sksundae.ida.IDA(resfn, jacfn=jacfn, rtol=tol,
+                              atol=np.full(n, p.atol(tol)), algebraic_idx=p.algebraic,
+                              max_num_steps=10**7)
+
+    def run():
+        t = time.perf_counter()
+        sol = solver.solve(np.array(p.t_span), p.y0, p.yp0)
+        dt = time.perf_counter() - t
+        if not sol.success:
+            raise RuntimeError(sol.message)
+        return dt, sol.t.size - 1, int(sol.nfev), sol.y[-1]
+    return run
+
+
+def make_idas(p, tol):
+    """CasADi IDAS integrator for problems with M = diag(1 or 0) (None otherwise)."""
+    import casadi as ca
+    if p.residual_lib is None or p.name.startswith("Transistor"):
+        return None
+    n = p.y0.size
+    alg = sorted(p.algebraic or [])
+    dif = [i for i in range(n) if i not in alg]
+    x = ca.SX.sym("x", len(dif))
+    z = ca.SX.sym("z", len(alg))
+    t = ca.SX.sym("t")
+    y = [None] * n
+    for k, i in enumerate(dif):
+        y[i] = x[k]
+    for k, i in enumerate(alg):
+        y[i] = z[k]
+    res = p.residual_lib(t, y, [0.0] * n, ca)
+    dae = {"x": x, "t": t, "ode": -ca.vertcat(*[res[i] for i in dif])}
+    if alg:
+        dae.update(z=z, alg=ca.vertcat(*[res[i] for i in alg]))
+    def integrator(calc_ic):
+        # IDAS starts from y' = 0 unless IDACalcIC runs; that fails on Robertson, where the
+        # start is consistent anyway (y'(0) = 0 for the algebraic part)
+        return ca.integrator("F", "idas", dae, p.t_span[0], [p.t_span[1]],
+                             {"abstol": p.atol(tol), "reltol": tol, "max_num_steps": 10**7,
+                              "calc_ic": calc_ic})
+
+    f = integrator(True)
+
+    def run():
+        nonlocal f
+        t0 = time.perf_counter()
+        try:
+            out = f(x0=p.y0[dif], z0=p.y0[alg] if alg else [])
+        except RuntimeError:
+            f = integrator(False)
+            t0 = time.perf_counter()
+            out = f(x0=p.y0[dif], z0=p.y0[alg] if alg else [])
+        dt = time.perf_counter() - t0
+        yf = np.empty(n)
+        yf[dif] = np.asarray(out["xf"]).ravel()
+        if alg:
+            yf[alg] = np.asarray(out["zf"]).ravel()
+        st = f.stats()
+        return dt, int(st["nsteps"]), int(st["nfevals"]), yf
+    return run
+
+
+def median_run(run, repeats):
+    outs = [run() for _ in range(repeats)]
+    return statistics.median(o[0] for o in outs), outs[-1]
+
+
+def variants(p, tol):
+    """(steps, mescd) of pvgraph with suppress_alg x NO_GROWTH_AFTER_FAILURE switched."""
+    cells = []
+    for no_growth in (True, False):
+        for supp in ((True, False) if p.algebraic else (False,)):
+            _, steps, _, yf = run_pvgraph(p, tol, supp, no_growth)
+            cells.append(f"{'S' if supp else 's'}{'G' if no_growth else 'g'} {steps} "
+                         f"{mescd(yf, p.y_ref, p.atol(tol), tol):.2f}")
+    return "; ".join(cells)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--variants", action="store_true")
+    parser.add_argument("--problems", default=",".join(PROBLEMS))
+    args = parser.parse_args()
+    print(machine())
+    print(f"repeats={args.repeats}; pvgraph NO_GROWTH_AFTER_FAILURE="
+          f"{ida_module.NO_GROWTH_AFTER_FAILURE}")
+    head = ("| problem | rtol | pvgraph steps | nre | mescd | ms | IDA steps | nre | mescd | ms "
+            "| IDAS steps | nre | mescd | ms | pv/IDA | pv/IDAS |")
+    print(head)
+    print("|" + "---|" * (head.count("|") - 1))
+    r_ida, r_idas = [], []
+    for key in args.problems.split(","):
+        p = PROBLEMS[key]
+        for tol in (LONG_TOLS if p.slow else TOLS):
+            reps = 1 if p.slow else args.repeats
+            t_pv, (_, s_pv, n_pv, y_pv) = median_run(lambda: run_pvgraph(p, tol), reps)
+            t_ida, (_, s_ida, n_ida, y_ida) = median_run(make_ida(p, tol), reps)
+            idas = make_idas(p, tol)
+            m = lambda yf: mescd(yf, p.y_ref, p.atol(tol), tol)  # noqa: E731
+            row = (f"| {p.name} | {tol:.0e} | {s_pv} | {n_pv} | {m(y_pv):.2f} | {t_pv * 1e3:.1f} "
+                   f"| {s_ida} | {n_ida} | {m(y_ida):.2f} | {t_ida * 1e3:.1f} ")
+            r_ida.append(t_pv / t_ida)
+            if idas is not None:
+                try:
+                    t_c, (_, s_c, n_c, y_c) = median_run(idas, reps)
+                except RuntimeError:
+                    idas = None
+            if idas is not None:
+                r_idas.append(t_pv / t_c)
+                row += (f"| {s_c} | {n_c} | {m(y_c):.2f} | {t_c * 1e3:.1f} "
+                        f"| {t_pv / t_ida:.2f} | {t_pv / t_c:.1f} |")
+            else:
+                row += f"| - | - | - | - | {t_pv / t_ida:.2f} | - |"
+            print(row, flush=True)
+            if args.variants:
+                print(f"|   variants (S/s suppress_alg on/off, G/g no-growth on/off: steps "
+                      f"mescd): {variants(p, tol)} |", flush=True)
+    print(f"median wall ratio pvgraph/IDA {statistics.median(r_ida):.2f}, "
+          f"pvgraph/IDAS {statistics.median(r_idas):.1f}")
+
+
+if __name__ == "__main__":
+    np.seterr(all="ignore")
+    main()
