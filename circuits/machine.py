@@ -18,9 +18,9 @@ The second reference circuit, built only from the component library and the PVG 
 PVE inputs: 6 V is neutral (half the 12 V supply); above it the main spool feeds port A, below
 it port B (report 4.4.2, 4.5). Port A lifts the boom and turns the swing in +phi.
 
-``build_machine(U_boom, U_swing)`` takes the two input voltages as constants or functions of
-time (expression vocabulary); :data:`CYCLE` is the lift-swing-lower cycle of
-``examples/machine_cycle.py``.
+``build_machine(cycle=...)`` takes the two input voltages as tables in time (``t``,
+``U_boom``, ``U_swing``, linear between the points); :data:`CYCLE` is the lift-swing-lower cycle
+of ``examples/machine_cycle.py``, :data:`SPEC` the sizes and settings (:class:`MachineSpec`).
 """
 
 from __future__ import annotations

@@ -114,7 +114,8 @@ def stored_volume(sol, circuit):
     return total
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=12, deadline=None, derandomize=True, database=None,
+          suppress_health_check=list(HealthCheck))
 @given(networks)
 def test_random_closed_network_stores_exactly_what_is_fed(spec):
     circuit = build(spec)
