@@ -114,6 +114,7 @@ def stored_volume(sol, circuit):
     return total
 
 
+@pytest.mark.slow
 @settings(max_examples=12, deadline=None, derandomize=True, database=None,
           suppress_health_check=list(HealthCheck))
 @given(networks)
