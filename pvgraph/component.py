@@ -221,6 +221,9 @@ class EventSpec:
 
     ``action(modes)`` receives a mapping of the component's own mode names to values and sets
     new values; after it the solver recomputes consistent initial values and restarts.
+    ``at_start``: the crossing is due already when the condition is at or past zero in its
+    direction at the start of a run (a switch scheduled at or before the start time); the
+    action is then applied before integrating (:meth:`pvgraph.system.System.apply_start_events`).
     """
 
     name: str
@@ -228,6 +231,7 @@ class EventSpec:
     direction: int = 0
     action: Callable[[Any], None] | None = None
     terminal: bool = False
+    at_start: bool = False
 
 
 def der(e) -> E.Expr:
@@ -315,9 +319,15 @@ class Symbols:
         return expression
 
     def event(self, name: str, condition, *, direction: int = 0,
-              action: Callable[[Any], None] | None = None, terminal: bool = False) -> None:
-        """Declare a zero-crossing ``condition`` (an expression) and the mode switch at it."""
-        self.events.append(EventSpec(name, E.as_expr(condition), direction, action, terminal))
+              action: Callable[[Any], None] | None = None, terminal: bool = False,
+              at_start: bool = False) -> None:
+        """Declare a zero-crossing ``condition`` (an expression) and the mode switch at it.
+
+        ``at_start=True`` (a switch scheduled in time, ``direction=1``): a run that starts with
+        the condition at or above zero begins with the action applied.
+        """
+        self.events.append(EventSpec(name, E.as_expr(condition), direction, action, terminal,
+                                     at_start))
 
 
 @dataclass

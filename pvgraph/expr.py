@@ -321,7 +321,10 @@ class Table:
     """
 
     __slots__ = ("x", "y", "method", "extrapolate", "name", "_xl", "_yl", "_dl", "_n",
-                 "sources", "slot")
+                 "sources", "slot", "_on_knot")
+
+    #: a point within this fraction of the span of an end knot is on the knot (:meth:`slope`)
+    ON_KNOT = 1e-12
 
     def __init__(self, x, y, *, method: str = "pchip", extrapolate: bool = False,
                  name: str = "table"):
@@ -353,6 +356,7 @@ class Table:
         self._dl = (_pchip_slopes(x, y) if method == "pchip" else
                     np.zeros_like(x)).tolist()
         self._n = x.size
+        self._on_knot = self.ON_KNOT * float(x[-1] - x[0])
 
     def with_values(self, x=None, y=None) -> "Table":
         """A table like this one with other knots or values (same method and name)."""
@@ -378,10 +382,26 @@ class Table:
                 + (-2 * s3 + 3 * s2) * yl[i + 1] + (s3 - s2) * d1)
 
     def slope(self, xv: float) -> float:
-        """Derivative dy/dx at a scalar ``xv``."""
+        """Derivative dy/dx at a scalar ``xv``.
+
+        Exactly on an end knot of a held table the slope is the one of the table's inside,
+        not the zero of the held outside: a state resting on the end (a start value, a spool
+        on the last point of its area table) can only leave into the table, and Newton
+        iterations starting there need that derivative (with the zero one the iteration
+        matrix misses the table's whole influence and the corrector diverges). "On the knot"
+        allows a few units of roundoff (``ON_KNOT`` times the table's span), since a value
+        computed to rest on the knot lands on either side of it. Farther outside the held
+        value has slope 0.
+        """
         xl, yl = self._xl, self._yl
         if xv <= xl[0] or xv >= xl[-1]:
             if not self.extrapolate:
+                at_first = abs(xv - xl[0]) <= self._on_knot
+                if at_first or abs(xv - xl[-1]) <= self._on_knot:
+                    i = 0 if at_first else self._n - 2
+                    if self.method == "linear":
+                        return (yl[i + 1] - yl[i]) / (xl[i + 1] - xl[i])
+                    return self._dl[0] if at_first else self._dl[-1]
                 return 0.0
             i = 0 if xv <= xl[0] else self._n - 2
             return (yl[i + 1] - yl[i]) / (xl[i + 1] - xl[i])

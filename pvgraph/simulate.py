@@ -186,6 +186,7 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         y_init[idx] = (value - off) / coef
     atol_vec = (rtol if atol is None else atol) * system.nominal
     system.reset_modes()
+    system.apply_start_events(t_start, y_init, yp_init)
     if system.n == 0:  # the circuit is fully determined algebraically: nothing to integrate
         t = np.asarray(t_eval if t_eval is not None else [t_start, t_end], dtype=float)
         return Solution(system, t, np.zeros((len(t), 0)), np.zeros((len(t), 0)),

@@ -173,6 +173,34 @@ class System:
         self.modes[:] = self.mode_start
         self.mode_log = [(-math.inf, tuple(self.modes))]
 
+    def apply_start_events(self, t, y, yp) -> list[str]:
+        """Apply the actions of the ``at_start`` events already due at the start time ``t``.
+
+        An event declared with ``at_start=True`` whose condition is at or past zero in its
+        direction at ``t`` (``g >= 0`` for ``direction=1``) has its action applied now, in
+        declaration order, until none is due any more (a ramp whose start and end both lie
+        before ``t``). Such conditions are times (``t - t_switch``), compared with a few units
+        of roundoff of ``t`` (``0.3 - (0.1 + 0.2)`` is due). Return the names of the events
+        applied.
+        """
+        applied: list[str] = []
+        slack = 8.0 * np.finfo(float).eps * max(1.0, abs(float(t)))
+        y = np.asarray(y, dtype=float)
+        yp = np.asarray(yp, dtype=float)
+        for _ in range(len(self.event_specs) + 1):
+            g = self.event_values(t, y, yp)
+            due = [(k, path, spec) for k, (path, spec) in enumerate(self.event_specs)
+                   if spec.at_start and spec.action is not None
+                   and f"{path}.{spec.name}" not in applied
+                   and (g[k] * (spec.direction or 1) >= -slack)]
+            if not due:
+                break
+            for k, path, spec in due:
+                spec.action(self.mode_view(path))
+                applied.append(f"{path}.{spec.name}")
+            self.mode_log.append((float(t), tuple(self.modes)))
+        return applied
+
     def mode_view(self, owner: str) -> ModeView:
         """The modes of component ``owner`` as a mutable mapping."""
         prefix = owner + ".#"

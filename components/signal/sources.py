@@ -12,7 +12,9 @@
 upwards), so the solver stops exactly at the switching time and restarts from consistent values
 there instead of stepping across the discontinuity. The modes start as "before"; a switching time
 at or before ``t = 0`` is applied at trace time (the value is the one after the switch). A
-simulation that starts (``t_start > 0``) after a switching time does not see that switch.
+simulation that starts at or after a switching time (``t_start >= t_step``) starts with that
+switch applied (the events are declared ``at_start``), so the value at ``t_step`` is the new one
+whichever side the run comes from.
 """
 
 from __future__ import annotations
@@ -68,7 +70,7 @@ class Step(Component):
     def equations(self, v, p):
         if p.t_step <= 0.0:
             return [v.y - (p.offset + p.height)]
-        v.event("step", v.t - p.t_step, direction=1, action=_switch("after"))
+        v.event("step", v.t - p.t_step, direction=1, action=_switch("after"), at_start=True)
         return [v.y - (p.offset + p.height * E.where(v.mode("after") > 0.5, 1.0, 0.0))]
 
 
@@ -92,11 +94,11 @@ class Ramp(Component):
         if t_end <= 0.0:
             fraction = E.const(1.0)
         else:
-            v.event("end", v.t - t_end, direction=1, action=_switch("ended"))
+            v.event("end", v.t - t_end, direction=1, action=_switch("ended"), at_start=True)
             fraction = E.where(v.mode("ended") > 0.5, 1.0, rising)
             if p.t_start > 0.0:
                 v.event("start", v.t - p.t_start, direction=1,
-                        action=_switch("started"))
+                        action=_switch("started"), at_start=True)
                 fraction = E.where(v.mode("started") > 0.5, fraction, 0.0)
         return [v.y - (p.offset + p.height * fraction)]
 

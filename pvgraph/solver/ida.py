@@ -74,7 +74,7 @@ N_CULPRITS = 3              # variable names quoted in failure messages
 
 SOLVER_NAME = "pvgraph BDF"   # named in every failure message (not SUNDIALS IDA)
 
-OK, NEWTON_FAIL, RESIDUAL_FAIL, SETUP_FAIL, ERROR_FAIL, JACOBIAN_FAIL = range(6)
+OK, NEWTON_FAIL, RESIDUAL_FAIL, SETUP_FAIL, ERROR_FAIL, JACOBIAN_FAIL, CONSTRAINT_FAIL = range(7)
 HARMONIC = [sum(1.0 / j for j in range(1, k + 1)) for k in range(MAX_ORDER + 2)]
 
 
@@ -186,10 +186,15 @@ class IDAIntegrator:
     no_growth_after_failure : bool or None
         No step increase right after a failed attempt; None takes
         ``NO_GROWTH_AFTER_FAILURE``.
+    nonnegative : ndarray of int or None
+        Components that must stay >= 0 (IDA's constraints, value 1): a corrected step that
+        makes one negative is retried with a step shrunk to 0.9 of the way to the zero
+        crossing (at least 0.1 of it), as IDA does.
     """
 
     def __init__(self, fun, n, rtol, atol, error_mask, jacobian, lu, max_order=MAX_ORDER,
-                 max_step=None, var_names=None, no_growth_after_failure=None):
+                 max_step=None, var_names=None, no_growth_after_failure=None,
+                 nonnegative=None):
         if not 1 <= max_order <= MAX_ORDER:
             raise ValueError(f"max_order must be in 1..{MAX_ORDER}, got {max_order}")
         self.fun = fun
@@ -215,7 +220,11 @@ class IDAIntegrator:
         self.netf = 0
         self.ncfn = 0
         self.nsetups = 0
+        self.nconstr = 0
         self._fail = None
+        self.nonnegative = (None if nonnegative is None or len(nonnegative) == 0
+                            else np.asarray(nonnegative, dtype=np.int64))
+        self._rr_constr = ETA_CF
 
     # ------------------------------------------------------------------ set-up
     def reinit(self, t, y, yp, t_bound, first_step=None):
@@ -293,6 +302,8 @@ class IDAIntegrator:
             tn = saved_t + hh
             # --- corrector and error test
             status = self._newton(tn, kk, hh, cj, gamma)
+            if status == OK and self.nonnegative is not None:
+                status = self._check_constraints()
             if status == OK:
                 ew = self.ewt_err
                 ee = self.ee
@@ -348,7 +359,7 @@ class IDAIntegrator:
                 self.ncfn += 1
                 if ncf >= MAX_CONV_FAILS:
                     self._raise_newton(status, ncf, saved_t, hh)
-                rr = ETA_CF
+                rr = self._rr_constr if status == CONSTRAINT_FAIL else ETA_CF
             hh *= rr
             if self.nst_restart == 0:
                 psi_old = list(psi_old)
@@ -361,6 +372,28 @@ class IDAIntegrator:
         self.t_old = saved_t
         self.tn = tn
         self._complete_step(kk, hh, knew, err_k, err_km1, nef + ncf > 0)
+
+    def _check_constraints(self):
+        """OK, or CONSTRAINT_FAIL with the step ratio that stops short of the crossing.
+
+        As IDA's IDANls: the ratio is 0.9 min(y_pred / (y_pred - y)) over the violated
+        components, at least 0.1.
+        """
+        idx = self.nonnegative
+        y = self.yy[idx]
+        bad = y < 0.0
+        if not bad.any():
+            return OK
+        self.nconstr += 1
+        y_new = y[bad]
+        y_pred = y_new - self.ee[idx][bad]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            q = np.where(y_pred > 0.0, y_pred / (y_pred - y_new), 0.0)
+        self._rr_constr = max(0.9 * float(np.min(q)), 0.1)
+        weighted = np.zeros(self.n)
+        weighted[idx[bad]] = -y_new * self.ewt[idx[bad]]
+        self._fail = (CONSTRAINT_FAIL, weighted)
+        return CONSTRAINT_FAIL
 
     def _newton(self, tn, kk, hh, cj, gamma):
         """Modified Newton on the corrector; leaves y, y' and the correction ee in self."""
@@ -584,6 +617,12 @@ class IDAIntegrator:
                 msg += "; non-finite variables: " + ", ".join(
                     repr(n) for n in dominant_names(np.where(np.isfinite(self.yy), 0, np.inf),
                                                     self.var_names, min(3, nonfinite_y.size)))
+        elif kind == CONSTRAINT_FAIL:
+            culprits = dominant_names(data, self.var_names,
+                                      count=max(1, min(N_CULPRITS, np.count_nonzero(data))))
+            msg = (f"{what}; the corrected solution makes a variable declared non-negative "
+                   f"negative ({', '.join(map(repr, culprits))}) however short the step: the "
+                   "problem leaves y >= 0 there, or its tolerances are too loose for it")
         elif kind == ERROR_FAIL:
             culprits = dominant_names(data, self.var_names)
             msg = (f"{what}; the weighted local error estimate is dominated by "

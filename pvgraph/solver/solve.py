@@ -57,7 +57,8 @@ def _as_mask(algebraic, n):
 def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None, jac=None,
               jac_sparsity=None, events=None, t_eval=None, max_step=None, first_step=None,
               calc_initial="algebraic", max_order=5, max_steps=100_000, var_names=None,
-              dense_output=False, suppress_alg=False, no_growth_after_failure=None):
+              dense_output=False, suppress_alg=False, no_growth_after_failure=None,
+              nonnegative=None):
     """Solve the implicit DAE F(t, y, y') = 0 of index at most one.
 
     Parameters
@@ -120,6 +121,14 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
         Variable names for error messages.
     dense_output : bool
         Provide ``result.sol(t)``.
+    nonnegative : array_like of int or bool, optional
+        Variables that must stay >= 0 (concentrations, amounts), as IDA's constraints:
+        a step that makes one negative is retried shorter, and the run stops with
+        SolverError if no step can avoid it. The local error test alone allows a
+        component far below its ``atol`` to change sign, and some problems are unstable
+        there: Robertson's reactions at ``rtol=1e-4, atol=1e-6`` let y2 (about 1e-11) go
+        negative, after which y1 and y3 run away to -4e7 and +4e7 while every local error
+        test passes (the tolerance, not the Jacobian, is at fault). ``True``: all of them.
 
     Returns
     -------
@@ -168,17 +177,35 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
             raise ValueError("t_eval must lie within t_span")
     if max_step is not None and not max_step > 0.0:
         raise ValueError(f"max_step must be positive, got {max_step}")
+    nonneg = _nonnegative(nonnegative, n, y0, var_names)
 
     with np.errstate(all="ignore"):
         return _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask,
                           algebraic is not None, bool(suppress_alg), jac, jac_sparsity, event_list, t_eval,
                           max_step, first_step, calc_initial, int(max_order), int(max_steps),
-                          var_names, dense_output, no_growth_after_failure)
+                          var_names, dense_output, no_growth_after_failure, nonneg)
+
+
+def _nonnegative(nonnegative, n, y0, var_names):
+    """The indices of the variables constrained to y >= 0 (checked at the start), or None."""
+    if nonnegative is None or nonnegative is False:
+        return None
+    if nonnegative is True:
+        idx = np.arange(n)
+    else:
+        idx = np.flatnonzero(_as_mask(nonnegative, n))
+    bad = idx[y0[idx] < 0.0]
+    if bad.size:
+        names = [var_names[i] if var_names is not None else f"y[{i}]" for i in bad[:3]]
+        raise InitializationError(f"y0 is negative in {', '.join(map(repr, names))}, declared "
+                                  "non-negative")
+    return idx if idx.size else None
 
 
 def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, suppress_alg, jac,
                jac_sparsity, event_list, t_eval, max_step, first_step, calc_initial,
-               max_order, max_steps, var_names, dense_output, no_growth_after_failure=None):
+               max_order, max_steps, var_names, dense_output, no_growth_after_failure=None,
+               nonnegative=None):
     """The integration loop behind ``solve_dae`` (arguments already checked)."""
     n = y0.size
     r0 = residual(t0, y0, yp0)
@@ -210,7 +237,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     y, yp = initialise(t0, y0, yp0, calc_initial)
 
     integ = IDAIntegrator(fun, n, rtol, atol, error_mask, jacobian, lu, max_order, max_step,
-                          var_names, no_growth_after_failure)
+                          var_names, no_growth_after_failure, nonnegative)
     integ.reinit(t0, y, yp, t_end, first_step)
 
     ts, ys, yps = [], [], []
@@ -331,6 +358,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         "nlu": lu.nlu,
         "netf": integ.netf,
         "ncfn": integ.ncfn,
+        "nconstr": integ.nconstr,
         "nni": integ.nni,
         "nroot": tracker.nroot if tracker is not None else 0,
     }

@@ -143,3 +143,18 @@ def test_codegen_shares_common_subexpressions():
     s = E.sqrt(y(0) * y(0) + 1.0)
     src, _ = codegen.generate("f", [s + 1.0, s * 2.0])
     assert src.count("_sqrt(") == 1
+
+
+@pytest.mark.parametrize("method", ["linear", "pchip"])
+def test_held_table_slope_on_an_end_knot_is_the_inside_one(method):
+    # a state resting on an end knot can only leave into the table: its slope there is the
+    # one-sided inside slope (the limit of the slopes inside), outside the held value has 0
+    from pvgraph.expr import Table
+    tab = Table([0.0, 1.0, 3.0, 4.0], [0.0, 2.0, 3.0, 7.0], method=method)
+    for end, inside in ((0.0, 1e-9), (4.0, 4.0 - 1e-9)):
+        assert tab.slope(end) == pytest.approx(tab.slope(inside), rel=1e-6)
+        assert tab.slope(end) != 0.0
+        # within roundoff of the knot (a start value computed to rest on it)
+        assert tab.slope(end + (2e-15 if end else -2e-15)) == tab.slope(end)  # just outside
+    assert tab.slope(-1e-6) == 0.0 and tab.slope(4.0 + 1e-6) == 0.0
+    assert tab.value(4.0 + 1e-6) == 7.0 and tab.value(-1e-6) == 0.0

@@ -135,3 +135,67 @@ def test_volume_discharge_through_a_fixed_opening_follows_the_square_root_law():
     np.testing.assert_allclose(np.sqrt(sol["vol.port.p"]), math.sqrt(p0) - rate * t, rtol=2e-3)
     np.testing.assert_allclose(sol["dut.F_flow"],
                                -2 * 0.6 * A * sol["vol.port.p"] * math.cos(0.48), rtol=1e-3)
+
+
+# --- a spool resting on the last point of its area table ------------------------------------
+X_TAB = (0.0, mm(1.5), mm(4.0), mm(7.0))
+A_TAB = (0.0, mm2(5.0), mm2(35.0), mm2(69.549))
+
+
+def _balanced_spool(u0=None, k=100.0):
+    """Supply 50 bar -> 40 mm^2 inlet -> 5 cm^3 node -> table-driven edge -> tank.
+
+    The spool has no mass: a soft spring (k) and a force input balance the flow force, so x
+    is algebraic and the table's slope is most of dF/dx (2 Cd dp cos(theta) dA/dx is some 30
+    times k). With ``u0=None`` a position input holds the spool on the table's last point.
+    """
+    from components.hydraulic import Orifice, PressureSource
+    from components.mechanical import LinearSpring
+    from components.mechanical.inputs import ForceInput, PositionInput
+    from components.signal import Constant, Ramp
+    c = Circuit("kink")
+    src = c.add("supply", PressureSource(p0=bar(50)))
+    inlet = c.add("inlet", Orifice(A=mm2(40)))
+    node = c.add("node", VolumeNode(V=cm3(5), p0=bar(20)))
+    edge = c.add("edge", VariableOrifice(x_table=X_TAB, A_table=A_TAB, opens="positive"))
+    tank = c.add("tank", Tank())
+    spring = c.add("spring", LinearSpring(k=k))
+    c.connect(src.port, inlet.a)
+    c.connect(inlet.b, node.port, edge.a)
+    c.connect(edge.b, tank.port)
+    if u0 is None:
+        drive, cmd = c.add("drive", PositionInput()), c.add("cmd", Constant(k=X_TAB[-1]))
+    else:   # the command force drops by 30 % from t = 0.01 s on: the spool leaves the end
+        drive = c.add("drive", ForceInput())
+        cmd = c.add("cmd", Ramp(offset=u0, height=-0.3 * u0, t_start=0.01, duration=0.02))
+    c.connect(edge.flange, spring.flange, drive.flange)
+    c.connect(cmd.y, drive.u)
+    return c
+
+
+@requires_solver
+@pytest.mark.parametrize("solver", ["pvgraph", "ida"])
+def test_spool_leaving_the_end_of_its_area_table(solver):
+    # the spool rests exactly on the table's end, then closes at an event: Newton starts on
+    # the kink of the held table (slope 0 outside, the table's inside) and must see the
+    # inside's slope, or the corrector diverges ("10 corrector failures", before the fix at
+    # every rtol here)
+    held = simulate(_balanced_spool(), 1.0, rtol=1e-9)
+    p0, u0 = held.final("node.port.p"), -held.final("drive.flange.f")
+    sols = {rtol: simulate(_balanced_spool(u0), 0.2, rtol=rtol, solver=solver,
+                           start={"node.port.p": p0}) for rtol in (1e-6, 1e-8)}
+    sol = sols[1e-8]
+    assert sol["edge.flange.x"][0] == pytest.approx(X_TAB[-1], abs=1e-15)
+    x, p = sol.final("edge.flange.x"), sol.final("node.port.p")
+    assert mm(1.5) < x < mm(7.0)                       # settled inside the table
+    params = VariableOrifice(x_table=X_TAB, A_table=A_TAB, opens="positive").params
+    area = params.A_leak + params.table().value(x)
+    # the edge passes the flow of eq. A.4 at the table's area, and the node has settled
+    q = orifice_flow(params.Cd, area, p, params.rho, params.dp_t)
+    assert sol.final("edge.q") == pytest.approx(q, rel=1e-8)
+    assert abs(sol.final("node.port.q")) < 1e-6 * q
+    # force balance: 0.7 u0 = k x + 2 Cd A |dp| cos(theta) (report eq. A.6)
+    dp_abs = p * p / math.sqrt(p * p + params.dp_t ** 2)
+    f_flow = 2 * params.Cd * area * dp_abs * math.cos(params.theta)
+    assert 100.0 * x + f_flow == pytest.approx(0.7 * u0, rel=1e-8)
+    assert sols[1e-6].final("edge.flange.x") == pytest.approx(x, rel=1e-5)

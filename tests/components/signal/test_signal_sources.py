@@ -38,6 +38,33 @@ def test_step_happens_exactly_at_its_time(sim):
     np.testing.assert_allclose(sol["lag.y"][after], exact, atol=2e-5)
 
 
+@pytest.mark.parametrize("solver", ["pvgraph", "ida"])
+def test_run_starting_at_the_step_time_starts_with_the_new_value(solver):
+    # the value at t_step is the new one, also for a run that begins there (or after it)
+    from pvgraph.simulate import simulate
+    circuit = _through_lag(Step(height=2.0, offset=-1.0, t_step=0.25))
+    for t0 in (0.25, 0.4):
+        sol = simulate(circuit, t0 + 0.1, t_start=t0, rtol=1e-7, solver=solver,
+                       start={"lag.y": 0.0})
+        assert sol.t[0] == t0
+        np.testing.assert_array_equal(sol["src.y"], 1.0)
+        # the lag then rises from 0 towards the new value 1: y = 1 - exp(-(t - t0)/tau)
+        np.testing.assert_allclose(sol["lag.y"], 1.0 - np.exp(-(sol.t - t0) / 0.02), atol=1e-5)
+        assert not sol.events
+
+
+def test_run_starting_inside_a_ramp_starts_on_it():
+    from pvgraph.simulate import simulate
+    circuit = _through_lag(Ramp(height=4.0, duration=0.2, offset=1.0, t_start=0.1))
+    sol = simulate(circuit, 0.5, t_start=0.2, rtol=1e-7)
+    assert [e.name for e in sol.events] == ["src.end"]
+    np.testing.assert_allclose(sol["src.y"], 1.0 + 4.0 * np.clip((sol.t - 0.1) / 0.2, 0, 1),
+                               atol=1e-6)
+    sol = simulate(circuit, 0.5, t_start=0.3, rtol=1e-7)   # starts at the end of the ramp
+    assert all(e.t == 0.3 for e in sol.events)   # 0.3 - (0.1 + 0.2) < 0 by one roundoff
+    np.testing.assert_allclose(sol["src.y"], 5.0, atol=1e-9)
+
+
 def test_step_at_time_zero_is_already_up(dae):
     system = _through_lag(Step(height=3.0, t_step=0.0)).compile()
     assert not system.event_specs

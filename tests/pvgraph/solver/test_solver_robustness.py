@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pvgraph.errors import SolverError
+from pvgraph.errors import InitializationError, SolverError
 from pvgraph.solver import Event, solve_dae, solve_dae_sundials
 from pvgraph.solver.testset import TRANSISTOR, mescd
 
@@ -188,6 +188,47 @@ def test_robertson_with_finite_differences_stays_physical():
                     atol=1e-8, algebraic=[2], suppress_alg=False)
     assert res.y[:, 0].min() > -1e-6 and res.y[:, 2].max() < 1.0 + 1e-6
     assert res.y[-1, 0] == pytest.approx(0.2083340149701255e-7, rel=0.2)
+
+
+@pytest.mark.parametrize("atol, suppress_alg", [(3e-6, False), (1e-6, True)])
+def test_robertson_at_loose_atol_declared_nonnegative_stays_within_tolerance(atol,
+                                                                             suppress_alg):
+    # rtol 1e-4 with an atol far above y2 (~1e-11): the local error test lets y2 change sign,
+    # and Robertson's reactions are unstable there (y1, y3 ran away to -/+4e7 by t = 1e11
+    # with every local test passed). Declared non-negative, as in IDA's own Robertson
+    # example, the steps that cross zero are retried shorter and the answer is within atol.
+    def rober(t, y, yp):
+        return np.array([yp[0] + 0.04 * y[0] - 1e4 * y[1] * y[2],
+                         yp[1] - 0.04 * y[0] + 1e4 * y[1] * y[2] + 3e7 * y[1] ** 2,
+                         y[0] + y[1] + y[2] - 1.0])
+
+    res = solve_dae(rober, (0.0, 1e11), [1.0, 0.0, 0.0], [-0.04, 0.04, 0.0], rtol=1e-4,
+                    atol=atol, algebraic=[2], suppress_alg=suppress_alg, nonnegative=True)
+    assert res.success and res.t[-1] == 1e11
+    assert res.y.min() >= 0.0
+    np.testing.assert_allclose(res.y.sum(axis=1), 1.0, atol=1e-12)       # mass balance
+    # published solution at t = 1e11: y1 = 2.0833e-8, y2 = 8.3334e-14 (Hairer & Wanner)
+    assert abs(res.y[-1, 0] - 0.2083340149701255e-7) < atol
+    assert abs(res.y[-1, 1] - 0.8333360770334713e-13) < atol
+
+
+def test_a_variable_declared_nonnegative_that_must_go_negative_stops_the_run():
+    # level' = -1 from 1: it reaches 0 at t = 1 and the problem takes it below
+    def tank(t, y, yp):
+        return np.array([yp[0] + 1.0, y[1] - (1.0 - t)])
+
+    with pytest.raises(SolverError) as info:
+        solve_dae(tank, (0.0, 2.0), [1.0, 1.0], [-1.0, -1.0], algebraic=[1],
+                  nonnegative=[0], var_names=["level", "x"])
+    text = str(info.value)
+    assert "non-negative" in text and "'level'" in text and "'x'" not in text
+    assert info.value.t == pytest.approx(1.0, abs=1e-9)
+    with pytest.raises(InitializationError, match="'level'"):
+        solve_dae(tank, (0.0, 2.0), [-1e-3, 1.0], [-1.0, -1.0], algebraic=[1],
+                  nonnegative=[0], var_names=["level", "x"])
+    # the same run without the constraint passes zero as the problem says
+    res = solve_dae(tank, (0.0, 2.0), [1.0, 1.0], [-1.0, -1.0], algebraic=[1])
+    assert res.y[-1, 0] == pytest.approx(-1.0, abs=1e-9)
 
 
 def test_finite_difference_jacobian_of_a_long_chain_detects_its_sparsity():
