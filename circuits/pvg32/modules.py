@@ -180,7 +180,7 @@ def main_spool_opening(p: PVG32Params) -> tables.AreaTable:
         m.dead_band, m.stroke_max, m.area_at_full_stroke,
         supply_voltage=p.rig.supply_voltage, dp=A_H_FIT_DROP, cd=p.discharge_coefficient,
         rho=p.fluid.density, input_gain=p.pve.input_gain, input_offset=p.pve.input_offset,
-        position_scale=A_H_FIT_POSITION_SCALE)
+        position_scale=A_H_FIT_POSITION_SCALE, shape=m.opening_shape)
 
 
 def opening_areas(p: PVG32Params | None = None) -> dict[str, tables.AreaTable]:

@@ -309,6 +309,13 @@ class MainSpoolParams(_Params):
     coulomb_friction: float = Field(
         0.0, ge=0.0, le=1e4,
         description="Coulomb friction c_cm [N] (4.4.7: neglected; 4.4.6 estimate 8.8e-4 m^2 * P_p)")
+    opening_shape: tuple[float, float] | None = Field(
+        None,
+        description="Shape (c2 [-], c3 [1/m]) of the metering opening A_H = c1 u + c2 u^2 + "
+                    "c3 u^3, u = |x_m| - dead_band, c1 fixed by area_at_full_stroke (4.4.2 gives "
+                    "only the dead band and 69.549 mm^2 at 7 mm). None = the shape fitted to the "
+                    "lab flows of tables.MAIN_SPOOL_LAB_ANCHORS (modules.main_spool_opening); "
+                    "circuits.crossval.identify sets it from the data it is given")
     lvdt_spring_rate: float = Field(
         190.0, ge=0.0, le=1e5,
         description="Spring of the LVDT core acting on the spool [N/m] (eq 4.74, B.3). Neglected "
@@ -451,6 +458,17 @@ class LoadOrificeParams(_Params):
                                      "(table 4.8)")
     laminar_large: float = Field(
         gt=0.0, le=1e-8, description="Laminar constant K, large setting [m^3/(s Pa)] (table 4.8)")
+    quadratic_small: float = Field(
+        0.0, ge=0.0, le=1e-13,
+        description="Second coefficient b of the load law Q = K dp + b dp |dp|, small setting "
+                    "[m^3/(s Pa^2)]. 0 = the report's laminar law (eq 4.132). The measured Q(dp) "
+                    "curves upwards (4.7.2: 'the curvature of the plot are all greater or equal "
+                    "to zero'); circuits.crossval.identify fits b >= 0 where the data span two "
+                    "pressure levels")
+    quadratic_large: float = Field(
+        0.0, ge=0.0, le=1e-13,
+        description="b of Q = K dp + b dp |dp|, large setting [m^3/(s Pa^2)] (see "
+                    "quadratic_small)")
     area_small: float = Field(
         gt=0.0, le=1e-3, description="Turbulent equivalent area (Cd = 0.6), small setting [m^2] "
                                      "(table 4.7)")
@@ -461,6 +479,10 @@ class LoadOrificeParams(_Params):
     def laminar(self, size: Literal["small", "large"]) -> float:
         """K [m^3/(s Pa)] for the named setting."""
         return {"small": self.laminar_small, "large": self.laminar_large}[size]
+
+    def quadratic(self, size: Literal["small", "large"]) -> float:
+        """b [m^3/(s Pa^2)] of Q = K dp + b dp |dp| for the named setting."""
+        return {"small": self.quadratic_small, "large": self.quadratic_large}[size]
 
     def area(self, size: Literal["small", "large"]) -> float:
         """Turbulent area [m^2] for the named setting."""
