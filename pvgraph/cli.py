@@ -133,7 +133,8 @@ def _cross_validate(args) -> None:
     print(f"wrote {path}")
     if not args.no_plots:
         from .plotting import plot_cross_validation
-        print(f"wrote {plot_cross_validation(cv.records, os.path.join(args.out, 'cross_validation.png'))}")
+        png = os.path.join(args.out, "cross_validation.png")
+        print(f"wrote {plot_cross_validation(cv.records, png)}")
 
 
 def _calibrate(args, start):

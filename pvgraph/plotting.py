@@ -17,7 +17,7 @@ import numpy as np  # noqa: E402
 from .units import to_bar, to_lpm, to_mm  # noqa: E402
 
 __all__ = ["plot_solution", "plot_flow_vs_voltage", "plot_cross_validation",
-           "plot_step_traces", "draw_circuit",
+           "plot_step_traces", "plot_step_comparison", "draw_circuit",
            "plot_bode", "plot_step_response", "plot_opening_areas"]
 
 _SCALES = {"Pa": (to_bar, "bar"), "m^3/s": (to_lpm, "L/min"), "m": (to_mm, "mm")}
@@ -154,6 +154,36 @@ def plot_step_traces(results, path):
         ax.set_ylabel("[bar]")
     fig.suptitle("Pressure drop over L3 after the solenoid step (cf. report fig. 4.48)",
                  fontsize=10)
+    return _save(fig, path)
+
+
+def plot_step_comparison(traces, path, *, title="Step responses"):
+    """Pressure drop over L3 after the solenoid step for model variants, one panel per test.
+
+    ``traces``: ``{test: {label: ScenarioResult}}``; the measured steady value is dashed. Each
+    label's legend entry gives its worst deviation from the final value 0.5 s after the step.
+    """
+    tests = list(traces)
+    rows = int(np.ceil(len(tests) / 2))
+    fig, axes = plt.subplots(rows, 2, figsize=(9, 2.4 * rows + 0.6), sharex=True, squeeze=False)
+    for ax, test in zip(axes.flat, tests):
+        for k, (label, r) in enumerate(traces[test].items()):
+            if r.error:
+                continue
+            ax.plot(r.trace_t, to_bar(r.trace_dp_L3), color=f"C{3 + k}",
+                    label=f"{label}: {to_bar(r.settle_deviation):.2f} bar after 0.5 s")
+        s = next(iter(traces[test].values())).scenario
+        ax.axhline(to_bar(s.measured.Pf - s.measured.Pb), color="C0", ls="--", lw=1)
+        ax.set_title(f"{test}: L2 {s.solenoid_event}", fontsize=9)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=6)
+    for ax in axes.flat[len(tests):]:
+        ax.axis("off")
+    for ax in axes[-1]:
+        ax.set_xlabel("time after the step [s]")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("Pf - Pb [bar]")
+    fig.suptitle(title, fontsize=10)
     return _save(fig, path)
 
 

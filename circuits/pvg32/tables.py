@@ -20,7 +20,9 @@ Tables
 ``main_spool_area``           A_H(x_m), main spool, both metering edges (4.4.2, figure 4.14a)
 ``pilot_orifice_areas``       the fixed orifices A4, A5, A6, A7, supply, drain, check balls
 ``nc_flow_map`` / ``no_flow_map``  duty-cycle-averaged Q(DT, dp) of the PVE solenoid valves
-                              (4.5.4 figure 4.22; anchors from figures 4.55 and 4.56)
+                              (4.5.4 figure 4.22; anchors from figures 4.55 and 4.56); the
+                              PVE valves run on them with ``pve.flow_map = "tables"``
+                              (``pwm_valve.MappedPWMValve``)
 """
 
 from __future__ import annotations
