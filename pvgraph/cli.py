@@ -4,6 +4,7 @@
 
     pvgraph validate                 # the PVG 32 rig validation against the lab data
     pvgraph validate --calibrate     # fit the uncertain rig parameters first, then validate
+    pvgraph validate --cross-validate  # also: refit leaving one group out, held-out errors
     pvgraph simulate test-2 --t-end 2 --csv out.csv --plot out.png
     pvgraph components               # the component library with ports and parameters
     pvgraph graph rig --out rig.png  # draw a circuit
