@@ -197,11 +197,12 @@ def _load_points(scenarios):
     return pts
 
 
-def _fit_load_law(points) -> tuple[float, float, str]:
-    """(K [L/(min bar)], b [L/(min bar^2)], law) through the origin."""
+def _fit_load_law(points, quadratic: bool = True) -> tuple[float, float, str]:
+    """(K [L/(min bar)], b [L/(min bar^2)], law) through the origin; laminar unless
+    ``quadratic`` and the points span two pressure levels."""
     dp = np.array([d for d, *_ in points])
     q = np.array([v for _, v, *_ in points])
-    if dp.max() > 1.3 * dp.min():
+    if quadratic and dp.max() > 1.3 * dp.min():
         (k, b), _ = nnls(np.column_stack([dp, dp * dp]), q)
         if k > 0.0:
             return float(k), float(b), "K dp + b dp^2"
@@ -267,12 +268,17 @@ def _with_shape(p: PVG32Params, shape) -> PVG32Params:
 
 
 def identify(train: list[Scenario], base: PVG32Params | None = None, *,
-             loads_from: list[Scenario] = (), pool=None) -> Identification:
+             loads_from: list[Scenario] = (), pool=None,
+             load_law: str = "quadratic") -> Identification:
     """Identify the data-derived parameters from ``train`` (module doc, steps 1-3).
 
     ``loads_from``: scenarios whose Q and dp may supply the law of an orifice setting the
     training set does not exercise (their Pf, Pm, Q_branch are then marked ``fit``).
+    ``load_law``: "quadratic" (Q = K dp + b dp |dp|) or "laminar" (the report's Q = K dp).
     """
+    if load_law not in ("quadratic", "laminar"):
+        raise PvgraphError(f"identify: load_law must be 'quadratic' or 'laminar', not "
+                           f"{load_law!r}")
     t0 = time.perf_counter()
     p = base or report_tuned()
     sources: dict[str, str] = {}
@@ -288,7 +294,7 @@ def identify(train: list[Scenario], base: PVG32Params | None = None, *,
         if not pts:
             sources[key] = "table 4.8 (not exercised by the data)"
             continue
-        k, b, law = _fit_load_law(pts)
+        k, b, law = _fit_load_law(pts, quadratic=load_law == "quadratic")
         names = sorted({n for *_, n, _ in pts})
         for *_, n, quantities in pts:
             fitted.update((n, q) for q in quantities)
@@ -377,12 +383,12 @@ class CrossValidation:
 
 
 def _fold(args):
-    grouping, key, train_names, test_names, base = args
+    grouping, key, train_names, test_names, base, load_law = args
     train = [get_scenario(n) for n in train_names]
     test = [get_scenario(n) for n in test_names]
     loads_from = test if grouping == "load" else ()
     try:
-        ident = identify(train, base, loads_from=loads_from)
+        ident = identify(train, base, loads_from=loads_from, load_law=load_law)
         pred = steady_values(ident.params, test, sweep_load=ident.sweep_load)
     except (PvgraphError, ValueError) as exc:        # a failed fold is recorded, not raised
         message = f"{type(exc).__name__}: {str(exc).splitlines()[0]}"
@@ -408,8 +414,10 @@ def _fold(args):
 
 
 def cross_validate(groupings=("voltage", "load"), base: PVG32Params | None = None, *,
-                   workers: int = 2, progress=None) -> CrossValidation:
-    """Leave one group out per grouping; identify on the rest; predict the group's steady states."""
+                   workers: int = 2, progress=None,
+                   load_law: str = "quadratic") -> CrossValidation:
+    """Leave one group out per grouping; identify on the rest; predict the group's steady
+    states. ``load_law`` as in :func:`identify`."""
     base = base or report_tuned()
     scenarios = all_scenarios()
     jobs = []
@@ -421,7 +429,7 @@ def cross_validate(groupings=("voltage", "load"), base: PVG32Params | None = Non
         for key in keys:
             test = [s.name for s in scenarios if keyf(s) == key]
             train = [s.name for s in scenarios if keyf(s) != key]
-            jobs.append((g, key, train, test, base))
+            jobs.append((g, key, train, test, base, load_law))
     t0 = time.perf_counter()
     records, folds = [], []
     if workers > 1:

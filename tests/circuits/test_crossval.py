@@ -108,3 +108,9 @@ def test_cross_validation_held_out_targets():
     # every held-out record was predicted without its scenario's data
     for fold in cv.folds:
         assert "error" not in fold["sources"]
+
+
+def test_identify_rejects_an_unknown_load_law():
+    from pvgraph.errors import PvgraphError
+    with pytest.raises(PvgraphError, match="load_law"):
+        X.identify(all_scenarios(), load_law="turbulent")
