@@ -156,6 +156,8 @@ def _calibrate(args, start):
         start = with_values(start, {k: v for k, v in (
             ("rig.supply_voltage", initial.rig.supply_voltage),
             ("rig.pump_flow", initial.rig.pump_flow)) if k in fit})
+    if "rig.supply_voltage" in fit:
+        start = C.opening_follows_supply(start)
 
     def progress(nfev, cost):
         if sys.stderr.isatty():
