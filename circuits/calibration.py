@@ -408,6 +408,7 @@ def calibrate_rig(fit=DEFAULT_FIT, *, start: PVG32Params | None = None,
         initial = report_initial()
         start = with_values(report_tuned(), {"rig.supply_voltage": initial.rig.supply_voltage,
                                              "rig.pump_flow": initial.rig.pump_flow})
+        start = opening_follows_supply(start)
     fit = list(fit)
     params = [fit_parameter(path, start) for path in fit]
     data = calibration_data(scenarios)
@@ -434,6 +435,15 @@ def calibrate_rig(fit=DEFAULT_FIT, *, start: PVG32Params | None = None,
             result = second
     fitted = with_values(start, dict(zip(result.names, result.estimates.tolist())))
     return result, fitted
+
+
+def opening_follows_supply(p: PVG32Params) -> PVG32Params:
+    """``p`` with A_H re-derived from the lab flows at whatever supply voltage it is given
+    (``main_spool.opening_shape = None``), as the report identified U_s (4.7.3). With the
+    presets' fixed shape a fitted U_s would have to carry the flows alone and drags the pump
+    flow towards saturation, where the steady states stop converging."""
+    return p.model_copy(update={"main_spool": p.main_spool.model_copy(
+        update={"opening_shape": None})})
 
 
 def _group_sigma(result: CalibrationResult, data: list[Datum]) -> np.ndarray:

@@ -23,16 +23,44 @@ from __future__ import annotations
 
 from typing import Literal
 
+from pydantic import Field
+
 from components.hydraulic import LaminarOrifice, Orifice, Pump, Tank, VolumeNode
 from components.hydraulic.solenoid import TimedOnOffValve
 from components.signal.sources import Constant
 from pvgraph import Circuit
+from pvgraph.component import Component, Hydraulic, Params
 from pvgraph.units import circle_area
 
 from .pvg32.modules import build_pvg32
 from .pvg32.parameters import PVG32Params, report_tuned
 
-__all__ = ["build_rig", "laminar_load", "turbulent_load", "cylinder_load"]
+__all__ = ["build_rig", "laminar_load", "turbulent_load", "cylinder_load", "LoadRestriction"]
+
+
+class LoadRestrictionParams(Params):
+    K: float = Field(..., gt=0.0, le=1.0, description="Linear coefficient [m^3/(s Pa)] "
+                                                        "(report eq. 4.132)")
+    b: float = Field(0.0, ge=0.0, le=1.0, description="Quadratic coefficient [m^3/(s Pa^2)]")
+
+
+class LoadRestriction(Component):
+    """An adjustable rig orifice ``q = K dp + b dp |dp|``, dp = a.p - b.p.
+
+    With b = 0 the report's laminar law (eq. 4.132). The rig's measured Q(dp) curves upwards
+    (report 4.7.2), which the turbulent law (downwards) and a dp + b sqrt(dp) (downwards for
+    b > 0; for b < 0 the flow runs against the pressure drop below (b/a)^2, about 3 bar for L3)
+    cannot represent; the quadratic term does, with q monotone in dp for K, b >= 0.
+    """
+
+    Params = LoadRestrictionParams
+    ports = {"a": Hydraulic("inlet"), "b": Hydraulic("outlet")}
+
+    def equations(self, v, p):
+        dp = v.a.p - v.b.p
+        q = v.observe("q", p.K * dp + p.b * dp * abs(dp), "m^3/s", "flow from a to b")
+        v.observe("dp", dp, "Pa", "pressure drop a - b")
+        return [v.a.q - q, v.a.q + v.b.q]
 
 # The rig's L2 has no stated switching time (the report aligns its traces on the step); a fast
 # on/off cartridge valve of this size switches in about 20 ms.
@@ -48,6 +76,14 @@ def _l2(p: PVG32Params, law: str, l2_open: bool, t_switch: float | None) -> Time
                            s0=float(l2_open), tau_open=tau, tau_close=tau, **law_kw)
 
 
+def _restriction(orifice, size: str):
+    """Laminar (eq. 4.132), or K dp + b dp |dp| where the parameters give b > 0."""
+    b = orifice.quadratic(size)
+    if b > 0.0:
+        return LoadRestriction(K=orifice.laminar(size), b=b)
+    return LaminarOrifice(K=orifice.laminar(size))
+
+
 def _rig_load(p: PVG32Params, law: Literal["laminar", "turbulent"], L1: str, L3: str,
               l2_open: bool, t_switch: float | None) -> Circuit:
     r, beta = p.rig, p.fluid.bulk_modulus
@@ -56,8 +92,8 @@ def _rig_load(p: PVG32Params, law: Literal["laminar", "turbulent"], L1: str, L3:
     m = c.add("m", VolumeNode(V=r.volume_m, beta=beta))
     b = c.add("b", VolumeNode(V=r.volume_b, beta=beta))
     if law == "laminar":
-        l1 = c.add("L1", LaminarOrifice(K=r.L1.laminar(L1)))
-        l3 = c.add("L3", LaminarOrifice(K=r.L3.laminar(L3)))
+        l1 = c.add("L1", _restriction(r.L1, L1))
+        l3 = c.add("L3", _restriction(r.L3, L3))
     else:
         fluid = {"Cd": p.discharge_coefficient, "rho": p.fluid.density}
         l1 = c.add("L1", Orifice(A=r.L1.area(L1), **fluid))

@@ -6,8 +6,14 @@ switch L2 and run on. The steady values at the end are compared with the measure
 pressure drop over L3 after the step is kept as a trace (the report's figures 4.41-4.48).
 
 ``validate()`` runs the scenarios on a process pool; ``comparison_records()`` turns the results
-into the ``{scenario, quantity, unit, measured, simulated}`` records written by
-``pvgraph validate --json``; ``targets()`` checks the validation targets (flow, pressures, margins, settling).
+into the ``{scenario, quantity, unit, measured, simulated, error, role}`` records written by
+``pvgraph validate --json``; ``targets()`` checks the acceptance targets with absolute
+tolerances (flow 1 L/min, pressures 2 bar).
+
+Every value carries its ``role`` (:mod:`circuits.crossval`): ``fit`` if the parameters were
+identified from it, ``held-out`` if not, ``trivial`` if any model passes it. For the report's
+tuned preset, 13 of the 17 non-neutral flows are ``fit`` (the A_H shape and the pump flow come
+from them); the held-out numbers come from ``pvgraph validate --cross-validate``.
 """
 
 from __future__ import annotations
@@ -21,14 +27,15 @@ import numpy as np
 
 from pvgraph.errors import PvgraphError
 from pvgraph.simulate import simulate
-from pvgraph.units import to_bar, to_lpm
+from pvgraph.units import bar, to_bar, to_lpm
 
+from .crossval import PRESSURE_TOL, pvp_margin_reachable, tuned_roles
 from .pvg32.parameters import PVG32Params, report_tuned
 from .rig import build_rig, laminar_load, turbulent_load
 from .scenarios import Scenario, all_scenarios, get_scenario
 
 __all__ = ["ScenarioResult", "run_scenario", "validate", "comparison_records", "targets",
-           "format_table", "QUANTITIES"]
+           "role_breakdown", "margin_statement", "format_table", "QUANTITIES"]
 
 SETTLE_TIME = 8.0      # [s] from rest to the steady state the step starts from
 AFTER_STEP = 2.0       # [s] simulated after the solenoid step
@@ -59,6 +66,7 @@ class ScenarioResult:
     wall_time: float = 0.0
     steps: int = 0
     error: str | None = None
+    params: PVG32Params | None = field(default=None, repr=False)
 
     @property
     def scenario(self) -> Scenario:
@@ -110,7 +118,8 @@ def run_scenario(scenario: Scenario | str, params: PVG32Params | None = None, *,
     else:                                # too short a run to tell: not shown to be settled
         deviation, settled = math.nan, False
     return ScenarioResult(scenario.name, simulated, margins, sol.t[window] - t_ref,
-                          dp_l3[window], settled, deviation, wall, sol.stats.get("nsteps", 0))
+                          dp_l3[window], settled, deviation, wall, sol.stats.get("nsteps", 0),
+                          params=p)
 
 
 def _run_safely(args):
@@ -144,16 +153,24 @@ def validate(params: PVG32Params | None = None, names: list[str] | None = None, 
     return [results[n] for n in names]
 
 
-def comparison_records(results) -> list[dict]:
-    """``{scenario, quantity, unit, measured, simulated, report_simulated}`` in table units."""
+def comparison_records(results, roles: dict | None = None) -> list[dict]:
+    """``{scenario, quantity, unit, measured, simulated, error, role, report_simulated}``.
+
+    Table units (bar, L/min); ``roles`` maps ``(scenario, quantity)`` to its role (default: the
+    tuned preset's, :func:`circuits.crossval.tuned_roles`).
+    """
+    roles = roles if roles is not None else tuned_roles()
     out = []
     for r in results:
         s = r.scenario
         for q, (unit, conv) in QUANTITIES.items():
-            measured = getattr(s.measured, q)
+            measured = conv(getattr(s.measured, q))
+            simulated = None if q not in r.simulated else conv(r.simulated[q])
             rec = {"scenario": r.name, "quantity": q, "unit": unit,
-                   "measured": round(conv(measured), 4),
-                   "simulated": None if q not in r.simulated else round(conv(r.simulated[q]), 4),
+                   "measured": round(measured, 4),
+                   "simulated": None if simulated is None else round(float(simulated), 4),
+                   "error": None if simulated is None else round(float(simulated - measured), 4),
+                   "role": roles[(r.name, q)],
                    "report_simulated": _report_value(s, q)}
             out.append(rec)
     return out
@@ -168,46 +185,83 @@ def _report_value(s: Scenario, q: str):
     return None
 
 
-def targets(results) -> dict:
-    """The validation targets (flow within the meter's accuracy, pressures, pump margin and
-    spool drop, settling), each with its verdict and the numbers behind it."""
-    flow_ok, press_ok, margin_ok, settled_ok = [], [], [], []
+def targets(results, roles: dict | None = None) -> dict:
+    """The acceptance targets, each ``(passed, total, rows)``; rows carry the judged roles.
+
+    Flow within 1 L/min at the 17 non-neutral points; Pf, Pm and Pb all within 2 bar (absolute)
+    per step test and per non-neutral sweep point; the main-spool drop within 1 bar of 5 bar
+    and the PVP margin within 1 bar of what the report's PVP spring holds (unsaturated points;
+    :func:`margin_statement`); settled within 0.5 s. A row is ``(scenario, number, ok,
+    role)`` where role is that of the judged value(s) ("fit" if any of them was fitted).
+    """
+    roles = roles if roles is not None else tuned_roles()
+    flow_ok, step_ok, sweep_ok, margin_ok, settled_ok = [], [], [], [], []
     for r in results:
         if r.error:
             continue
         s = r.scenario
-        err_q = abs(to_lpm(r.simulated["Q_total"] - s.measured.Q_total))
-        flow_ok.append((r.name, err_q, err_q <= 1.0))
-        if s.kind == "solenoid_step":
-            worst = 0.0
-            ok = True
-            for q in ("Pf", "Pm", "Pb"):
-                m, sim = getattr(s.measured, q), r.simulated[q]
-                err = abs(sim - m)
-                ok &= err <= max(2e5, 0.10 * abs(m))
-                worst = max(worst, to_bar(err))
-            press_ok.append((r.name, worst, ok))
-        saturated = r.margins["pump_relief_flow"] < 0.02 * 16.3 / 60000
         neutral = s.measured.Q_total == 0.0
+        if not neutral:
+            err_q = abs(to_lpm(r.simulated["Q_total"] - s.measured.Q_total))
+            flow_ok.append((r.name, err_q, err_q <= 1.0 + 1e-9, roles[(r.name, "Q_total")]))
+            worst = max(abs(r.simulated[q] - getattr(s.measured, q)) for q in ("Pf", "Pm", "Pb"))
+            rs = {roles[(r.name, q)] for q in ("Pf", "Pm", "Pb")}
+            row = (r.name, to_bar(worst), worst <= PRESSURE_TOL + 1e-6,
+                   "fit" if "fit" in rs else "held-out")
+            (step_ok if s.kind == "solenoid_step" else sweep_ok).append(row)
+        saturated = r.margins["pump_relief_flow"] < 0.02 * 16.3 / 60000
         if not saturated and not neutral:
+            reach = to_bar(pvp_margin_reachable(r.params or report_tuned())["at_A3_opening"])
             pm = to_bar(r.margins["pump_margin"])
             ms = to_bar(r.margins["main_spool_drop"])
-            margin_ok.append((r.name, pm, ms, abs(pm - 15) <= 2 and abs(ms - 5) <= 1))
-        settled_ok.append((r.name, r.settle_deviation, r.settled))
+            margin_ok.append((r.name, pm, abs(pm - reach) <= 1.0 and abs(ms - 5) <= 1,
+                              "held-out"))
+        settled_ok.append((r.name, r.settle_deviation, r.settled, "held-out"))
     return {
-        "flow within 1 L/min (19 points)": (sum(o for *_, o in flow_ok), len(flow_ok), flow_ok),
-        "Pf, Pm, Pb within 2 bar or 10 % (>= 10 of 12 step tests)":
-            (sum(o for *_, o in press_ok), len(press_ok), press_ok),
-        "pump margin 15 +- 2 bar and main spool drop 5 +- 1 bar (unsaturated)":
-            (sum(o for *_, o in margin_ok), len(margin_ok), margin_ok),
-        "settled within 0.5 s": (sum(o for *_, o in settled_ok), len(settled_ok), settled_ok),
+        "flow within 1 L/min (non-neutral points)": _count(flow_ok),
+        "Pf, Pm, Pb within 2 bar (step tests)": _count(step_ok),
+        "Pf, Pm, Pb within 2 bar (non-neutral sweep points)": _count(sweep_ok),
+        "PVP margin within 1 bar of its spring's, main spool drop 5 +- 1 bar (unsaturated)":
+            _count(margin_ok),
+        "settled within 0.5 s": _count(settled_ok),
     }
 
 
-def format_table(results) -> str:
-    """A plain-text table: measured vs simulated (and the report's simulation) per scenario."""
-    head = (f"{'scenario':9s} {'U [V]':>6s} | {'Q_total L/min':>19s} | {'Q_branch L/min':>15s} | "
-            f"{'Pf bar':>13s} | {'Pm bar':>13s} | {'Pb bar':>13s} | settled")
+def _count(rows):
+    return sum(row[2] for row in rows), len(rows), rows
+
+
+def role_breakdown(rows) -> str:
+    """'fit 12/12, held-out 4/4' from target rows."""
+    parts = []
+    for role in ("fit", "held-out", "trivial"):
+        mine = [row for row in rows if row[3] == role]
+        if mine:
+            parts.append(f"{role} {sum(row[2] for row in mine)}/{len(mine)}")
+    return ", ".join(parts)
+
+
+def margin_statement(p: PVG32Params | None = None) -> str:
+    """What margin the report's own PVP parameters can hold, in numbers."""
+    p = p or report_tuned()
+    m = pvp_margin_reachable(p)
+    need = bar(15.0) * p.pvp.spool_area - p.pvp.spring_preload - \
+        p.pvp.spring_rate * p.pvp.tank_area_dead_band
+    return (f"PVP margin: the report's spring ({p.pvp.spring_preload:.0f} N preload, "
+            f"{p.pvp.spring_rate:.0f} N/m) on A_p = {p.pvp.spool_area * 1e6:.1f} mm^2 holds "
+            f"{to_bar(m['preload_only']):.2f} bar at rest and {to_bar(m['at_A3_opening']):.2f} bar "
+            f"where A3 opens (2 mm), plus the A3 flow force: the data sheet's 15 bar is not "
+            f"reachable with these parameters (it needs {need:.0f} N more spring force); the "
+            f"target is the spring's own margin +- 1 bar")
+
+
+def format_table(results, roles: dict | None = None) -> str:
+    """A plain-text table: measured vs simulated (and the report's simulation) per scenario,
+    each cell with the value's role (f fit, h held-out, t trivial)."""
+    roles = roles if roles is not None else tuned_roles()
+    code = {"fit": "f", "held-out": "h", "trivial": "t"}
+    head = (f"{'scenario':9s} {'U [V]':>6s} | {'Q_total L/min':>21s} | {'Q_branch L/min':>17s} | "
+            f"{'Pf bar':>15s} | {'Pm bar':>15s} | {'Pb bar':>15s} | settled")
     lines = [head, "-" * len(head)]
     for r in results:
         s = r.scenario
@@ -217,13 +271,16 @@ def format_table(results) -> str:
         cells = []
         for q in QUANTITIES:
             unit, conv = QUANTITIES[q]
-            width = 19 if q == "Q_total" else 15 if q == "Q_branch" else 13
+            width = 21 if q == "Q_total" else 17 if q == "Q_branch" else 15
             text = f"{conv(getattr(s.measured, q)):6.2f} {conv(r.simulated[q]):6.2f}"
             ref = _report_value(s, q)
             if ref is not None:
                 text += f" ({ref:.2f})"
+            text += f" {code[roles[(r.name, q)]]}"
             cells.append(f"{text:>{width}s}")
         lines.append(f"{r.name:9s} {s.U_input:6.2f} | " + " | ".join(cells) +
                      f" | {'yes' if r.settled else 'NO'}")
-    lines.append("each cell: measured simulated (report's simulation, where tabulated)")
+    lines.append("each cell: measured simulated (report's simulation, where tabulated) role: "
+                 "f fit (used to identify a parameter), h held-out, t trivial (neutral, "
+                 "saturated or L2 closed)")
     return "\n".join(lines)

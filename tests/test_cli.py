@@ -463,3 +463,36 @@ def test_a_broken_user_file_is_named(tmp_path, capsys):
     wrong.write_text("def build():\n    return 42\n")
     assert main(["simulate", f"{wrong}:build"]) == 2
     assert "returned int, not a pvgraph Circuit" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_validate_cross_validate_writes_held_out_records(tmp_path, capsys):
+    code = main(["validate", "--scenario", "test-9", "--out", str(tmp_path), "--no-plots",
+                 "--cross-validate"])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "leave one voltage group out" in out and "leave one load group out" in out
+    data = json.loads((tmp_path / "cross_validation.json").read_text())
+    assert {r["role"] for r in data["records"]} <= {"fit", "held-out", "trivial"}
+    held = [r for r in data["records"] if r["grouping"] == "voltage"
+            and r["quantity"] == "Q_total" and r["role"] == "held-out"]
+    assert len(held) == 16                       # 17 non-neutral points less the saturated one
+    assert sum(abs(r["error"]) <= 1.0 for r in held) >= 14
+    records = json.loads((tmp_path / "validation.json").read_text())
+    assert all(r["role"] in ("fit", "held-out", "trivial") for r in records)
+
+
+def test_validate_records_carry_roles(tmp_path, capsys):
+    code = main(["validate", "--scenario", "sweep-5", "--scenario", "sweep-1", "--out",
+                 str(tmp_path), "--no-plots", "--workers", "1"])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "PVP margin: the report's spring" in out and "not reachable" in out
+    records = {(r["scenario"], r["quantity"]): r
+               for r in json.loads((tmp_path / "validation.json").read_text())}
+    assert records[("sweep-5", "Q_total")]["role"] == "fit"          # an A_H anchor
+    assert records[("sweep-1", "Q_total")]["role"] == "trivial"      # neutral
+    assert records[("sweep-5", "Pf")]["role"] == "held-out"
+    r = records[("sweep-5", "Q_total")]
+    assert r["error"] == pytest.approx(r["simulated"] - r["measured"], abs=1e-3)
+    assert abs(r["error"]) <= 1.0                                      # flow meter +-1 L/min

@@ -26,10 +26,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from components.hydraulic import Orifice, Tank, VolumeNode
+from components.hydraulic import LaminarOrifice, Orifice, Tank, VolumeNode
 from components.hydraulic.check_valve import CheckValve
-from components.hydraulic.solenoid import PWMValve
 from components.hydraulic.variable_orifice import VariableOrifice
+from components.hydraulic.solenoid import PWMValve
 from components.hydraulic.volumes import PistonChamber
 from components.mechanical import EndStop, Friction, LinearSpring, SpoolMass
 from components.mechanical.springs import CenteringSpring, TwoStageSpring
@@ -38,6 +38,8 @@ from components.signal.sources import Constant
 from pvgraph import Circuit
 
 from . import tables
+from .friction import LuGreFriction
+from .pwm_valve import MappedPWMValve
 from .parameters import PVG32Params, report_tuned
 
 __all__ = ["build_pvp", "build_pvb", "build_pve", "build_pvg32", "opening_areas"]
@@ -80,10 +82,25 @@ def _fluid(p: PVG32Params) -> dict:
     return {"Cd": p.discharge_coefficient, "rho": p.fluid.density}
 
 
+# The edges' tables are piecewise linear (tables.py, docs/pvg32_model.md): an unslotted land
+# opens an annulus whose area grows linearly with travel (A3's 60 mm^2/mm is pi x 19 mm, about
+# the 18 mm spool's circumference; A2 = pi D x_k, eq 4.38; A1 a linear slot edge). The orifice
+# evaluates its table with a monotone pchip, which through a few break points rounds each
+# kink over a whole segment (A3 at 2.1 mm: 0.59 instead of 6.0 mm^2). Sampling the linear
+# table every TABLE_STEP keeps the pchip on the straight segments exactly and confines the
+# rounding to one step at each kink.
+TABLE_STEP = 2e-5           # [m]
+
+
 def _table(area: tables.AreaTable, keep=None) -> dict:
-    """x_table/A_table keywords of a VariableOrifice; ``keep(x)`` masks where the edge opens."""
+    """x_table/A_table keywords of a VariableOrifice; ``keep(x)`` masks where the edge opens.
+
+    The table is resampled every :data:`TABLE_STEP` (linear interpolation, break points kept).
+    """
     x = np.asarray(area.x, dtype=float)
-    a = np.asarray(area.area, dtype=float)
+    n = int(np.ceil((x[-1] - x[0]) / TABLE_STEP))
+    x = np.unique(np.concatenate([np.linspace(x[0], x[-1], n + 1), x]))
+    a = area(x)
     if keep is not None:
         a = np.where(keep(x), a, 0.0)
     return {"x_table": tuple(x.tolist()), "A_table": tuple(a.tolist())}
@@ -137,8 +154,12 @@ def _build_compensator(c: Circuit, p: PVG32Params):
     spool = c.add("comp_spool", SpoolMass(m=k.spool_mass))
     spring = c.add("comp_spring", TwoStageSpring(k1=k.spring_rate_1, k2=k.spring_rate_2,
                                                  x_b=k.second_stage_start, F0=k.spring_preload))
-    friction = c.add("comp_friction", Friction(F_c=k.coulomb_friction, b=k.viscous_friction,
-                                                       v_eps=FRICTION_V_EPS))
+    if k.friction_law == "lugre" and k.coulomb_friction > 0.0:
+        friction = c.add("comp_friction", LuGreFriction(F_c=k.coulomb_friction,
+                                                        b=k.viscous_friction))
+    else:
+        friction = c.add("comp_friction", Friction(F_c=k.coulomb_friction,
+                                                   b=k.viscous_friction, v_eps=FRICTION_V_EPS))
     # V2 = 1 cm^3 - A_k x_k vanishes at 3.93 mm (eq. 4.31): the stroke ends before that
     stop = c.add("comp_stop", EndStop(x_min=0.0, x_max=0.9 * k.stroke_max,
                                           eps=STOP_ROUNDING))
@@ -174,13 +195,18 @@ A_H_FIT_POSITION_SCALE = 0.98
 
 
 def main_spool_opening(p: PVG32Params) -> tables.AreaTable:
-    """The main spool's A_H(x_m) table used by the model (see ``A_H_FIT_DROP``)."""
+    """The main spool's A_H(x_m) table used by the model.
+
+    With ``main_spool.opening_shape`` set (both presets: ``parameters.TUNED_OPENING_SHAPE``,
+    refitted at the travel and drop the model settles at) that cubic; with None the anchor fit
+    under ``A_H_FIT_DROP`` and ``A_H_FIT_POSITION_SCALE``.
+    """
     m = p.main_spool
     return tables.main_spool_area(
         m.dead_band, m.stroke_max, m.area_at_full_stroke,
         supply_voltage=p.rig.supply_voltage, dp=A_H_FIT_DROP, cd=p.discharge_coefficient,
         rho=p.fluid.density, input_gain=p.pve.input_gain, input_offset=p.pve.input_offset,
-        position_scale=A_H_FIT_POSITION_SCALE)
+        position_scale=A_H_FIT_POSITION_SCALE, shape=m.opening_shape)
 
 
 def opening_areas(p: PVG32Params | None = None) -> dict[str, tables.AreaTable]:
@@ -238,6 +264,13 @@ def build_pvb(p: PVG32Params | None = None) -> Circuit:
     c.connect(p_b.b, ls_b.a, b_t.a)                      # work port B
     c.connect(ls_a.b, ls_b.b, ls_drain.a, a5.a, ls.port)  # LS channel to the spring chamber
     c.connect(a_t.b, b_t.b, ls_drain.b)                  # tank
+    if m.clearance_leakage > 0.0:
+        # clearance leakage of the four lands (parameters.MainSpoolParams.clearance_leakage)
+        for name, a, b in (("leak_PA", p_a.a, p_a.b), ("leak_PB", p_b.a, p_b.b),
+                           ("leak_AT", a_t.a, a_t.b), ("leak_BT", b_t.a, b_t.b)):
+            leak = c.add(name, LaminarOrifice(K=m.clearance_leakage))
+            c.connect(leak.a, a)
+            c.connect(leak.b, b)
     c.expose("P", a1.a, "supply from the PVP (P_p)")
     c.expose("T", a_t.b, "tank")
     c.expose("A", p_a.b, "work port A")
@@ -270,10 +303,11 @@ def build_pve(p: PVG32Params | None = None) -> Circuit:
     drain = c.add("drain", Orifice(A=e.drain_orifice_area, **_fluid(p)))
     v4 = c.add("V4", PistonChamber(A=m.spool_area, V0=e.port_a_volume, side=1, beta=beta))
     v5 = c.add("V5", PistonChamber(A=m.spool_area, V0=e.port_b_volume, side=-1, beta=beta))
-    nc1 = c.add("NC1", PWMValve(kind="NC", tau=e.nc1.switching_delay, DT0=e.duty_offset))
-    no2 = c.add("NO2", PWMValve(kind="NO", tau=e.no2.switching_delay, DT0=e.duty_offset))
-    nc3 = c.add("NC3", PWMValve(kind="NC", tau=e.nc3.switching_delay, DT0=e.duty_offset))
-    no4 = c.add("NO4", PWMValve(kind="NO", tau=e.no4.switching_delay, DT0=e.duty_offset))
+    valve = MappedPWMValve if e.flow_map == "tables" else PWMValve
+    nc1 = c.add("NC1", valve(kind="NC", tau=e.nc1.switching_delay, DT0=e.duty_offset))
+    no2 = c.add("NO2", valve(kind="NO", tau=e.no2.switching_delay, DT0=e.duty_offset))
+    nc3 = c.add("NC3", valve(kind="NC", tau=e.nc3.switching_delay, DT0=e.duty_offset))
+    no4 = c.add("NO4", valve(kind="NO", tau=e.no4.switching_delay, DT0=e.duty_offset))
     check_a = c.add("check_A", CheckValve(A=e.check_valve_area,
                                           p_crack=e.check_valve_cracking_pressure, **_fluid(p)))
     check_b = c.add("check_B", CheckValve(A=e.check_valve_area,

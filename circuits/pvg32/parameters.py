@@ -46,9 +46,16 @@ __all__ = [
     "parameter_paths",
     "parameter_field",
     "with_values",
+    "parameter_table",
 ]
 
 _SPOOL_D = mm(18.0)  # all three spools are 18 mm (eq 4.5, 4.32, 4.71)
+
+#: A_H shape (c2 [-], c3 [1/m]) of both presets: least squares to the flows of
+#: tables.MAIN_SPOOL_LAB_ANCHORS at the travel and main-spool drop this model settles at with
+#: U_s = 11.5 V (three fixed-point passes of circuits.crossval's step 3; residuals -0.7 to
+#: +0.7 L/min). These 12 flows are therefore fitted, not predicted (circuits.crossval).
+TUNED_OPENING_SHAPE = (-0.5834, 338.46)
 
 
 class _Params(BaseModel):
@@ -234,6 +241,11 @@ class CompensatorParams(_Params):
         0.0, ge=0.0, le=1e4,
         description="Coulomb friction force c_cc [N] (table 4.9: 0 N; table 4.14: 50 N tuned; "
                     "4.3.6 estimate 3.7e-4 m^2 * P_p)")
+    friction_law: Literal["smooth", "lugre"] = Field(
+        "smooth",
+        description="Law of the Coulomb term [-]: 'smooth' F_c tanh(v / 1 mm/s) (no force at "
+                    "rest: the spool creeps under any force), 'lugre' stick-slip "
+                    "(circuits.pvg32.friction: holds up to F_c at rest, +-1.96 bar at 50 N)")
 
     @property
     def preload_stage_2(self) -> float:
@@ -309,6 +321,25 @@ class MainSpoolParams(_Params):
     coulomb_friction: float = Field(
         0.0, ge=0.0, le=1e4,
         description="Coulomb friction c_cm [N] (4.4.7: neglected; 4.4.6 estimate 8.8e-4 m^2 * P_p)")
+    clearance_leakage: float = Field(
+        1.35e-14, ge=0.0, le=1e-9,
+        description="Laminar leakage conductance of each metering land through the radial "
+                    "clearance, in parallel with the edge [m^3/(s Pa)]. Not in the report. An "
+                    "annular gap leaks pi d c^3 dp / (12 mu L): d = 18 mm, c = 5 um, L = 1.5 mm "
+                    "overlap, mu = 0.029 Pa s gives 1.35e-14 (8 cm^3/min at 100 bar; the PVG 32 "
+                    "data sheet allows 20 cm^3/min A/B -> T at 100 bar). Negligible against the "
+                    "metered flow (< 0.01 L/min), but in neutral the four equal leaks hold the "
+                    "closed work ports at (P_K + P_T) / 2, with a time constant of about 17 s "
+                    "for the rig's 0.63 L of hoses; 0 = no leakage (the report)")
+    opening_shape: tuple[float, float] | None = Field(
+        TUNED_OPENING_SHAPE,
+        description="Shape (c2 [-], c3 [1/m]) of the metering opening A_H = c1 u + c2 u^2 + "
+                    "c3 u^3, u = |x_m| - dead_band, c1 fixed by area_at_full_stroke (4.4.2 gives "
+                    "only the dead band and 69.549 mm^2 at 7 mm). Default: fitted to the 12 lab "
+                    "flows of tables.MAIN_SPOOL_LAB_ANCHORS at the travel and drop this model "
+                    "settles at (TUNED_OPENING_SHAPE). None = the cubic of "
+                    "tables.main_spool_area under 4.7.3's assumptions (modules.main_spool_opening)."
+                    " circuits.crossval.identify refits it from the data it is given")
     lvdt_spring_rate: float = Field(
         190.0, ge=0.0, le=1e5,
         description="Spring of the LVDT core acting on the spool [N/m] (eq 4.74, B.3). Neglected "
@@ -424,7 +455,16 @@ class PVEParams(_Params):
     map_supply_voltage: float = Field(
         13.0, gt=0.0, le=50.0,
         description="Supply voltage at which the solenoid flow maps were made [V] (4.5.4, "
-                    "figure 4.22: 13 V at 50 degC); informational")
+                    "figure 4.22: 13 V at 50 degC); informational. The rig ran at the identified "
+                    "11.5 V (4.7.3); the report gives no map at that voltage, so the 13 V map is "
+                    "used (docs/pvg32_model.md, section 6)")
+    flow_map: Literal["separable", "tables"] = Field(
+        "separable",
+        description="Flow map of NC1-NO4 [-]: 'separable' = Q_ref(DT) sqrt(dp/dp_ref) of "
+                    "components.hydraulic.solenoid (figure 4.55's lines at the report's "
+                    "linearisation pressures, the gains of its linear model 4.8-4.9); 'tables' = "
+                    "the two-dimensional maps of circuits.pvg32.tables (also figure 4.56), "
+                    "circuits.pvg32.pwm_valve. docs/pvg32_model.md section 6 compares them")
 
     @property
     def supply_orifice_area(self) -> float:
@@ -451,6 +491,17 @@ class LoadOrificeParams(_Params):
                                      "(table 4.8)")
     laminar_large: float = Field(
         gt=0.0, le=1e-8, description="Laminar constant K, large setting [m^3/(s Pa)] (table 4.8)")
+    quadratic_small: float = Field(
+        0.0, ge=0.0, le=1e-13,
+        description="Second coefficient b of the load law Q = K dp + b dp |dp|, small setting "
+                    "[m^3/(s Pa^2)]. 0 = the report's laminar law (eq 4.132). The measured Q(dp) "
+                    "curves upwards (4.7.2: 'the curvature of the plot are all greater or equal "
+                    "to zero'); circuits.crossval.identify fits b >= 0 where the data span two "
+                    "pressure levels")
+    quadratic_large: float = Field(
+        0.0, ge=0.0, le=1e-13,
+        description="b of Q = K dp + b dp |dp|, large setting [m^3/(s Pa^2)] (see "
+                    "quadratic_small)")
     area_small: float = Field(
         gt=0.0, le=1e-3, description="Turbulent equivalent area (Cd = 0.6), small setting [m^2] "
                                      "(table 4.7)")
@@ -461,6 +512,10 @@ class LoadOrificeParams(_Params):
     def laminar(self, size: Literal["small", "large"]) -> float:
         """K [m^3/(s Pa)] for the named setting."""
         return {"small": self.laminar_small, "large": self.laminar_large}[size]
+
+    def quadratic(self, size: Literal["small", "large"]) -> float:
+        """b [m^3/(s Pa^2)] of Q = K dp + b dp |dp| for the named setting."""
+        return {"small": self.quadratic_small, "large": self.quadratic_large}[size]
 
     def area(self, size: Literal["small", "large"]) -> float:
         """Turbulent area [m^2] for the named setting."""
@@ -479,8 +534,9 @@ class RigSolenoidValveParams(_Params):
         description="Turbulent equivalent area when open [m^2] (table 4.7: 5.800 mm^2, Cd = 0.6)")
     switching_time: float | None = Field(
         None, gt=0.0, le=1.0,
-        description="Opening/closing time of L2 [s]. Not given in the report (the measured "
-                    "traces are aligned to the step, 4.7.3); None = ideal step")
+        description="Opening/closing time of L2, a first-order lag [s]. Not given in the "
+                    "report (the measured traces are aligned to the step, 4.7.3); None = "
+                    "circuits.rig.L2_SWITCH_TIME, 20 ms (a fast cartridge valve of this size)")
 
 
 class RigParams(_Params):
@@ -569,6 +625,8 @@ def report_initial() -> PVG32Params:
     )
 
 
+
+
 def report_tuned() -> PVG32Params:
     """The report's validated model: table 4.14 (section 4.7.3)."""
     return PVG32Params(
@@ -636,3 +694,34 @@ def with_values(p: PVG32Params, updates: dict[str, float]) -> PVG32Params:
         lines = [f"  {'.'.join(str(x) for x in e['loc'])} = {e.get('input')!r}: {e['msg']}"
                  for e in exc.errors()]
         raise ParameterError("invalid PVG 32 parameter value(s):\n" + "\n".join(lines)) from None
+
+
+def parameter_table() -> str:
+    """The markdown table of every parameter of both presets (docs/pvg32_model.md, section 12).
+
+    One row per leaf field: dotted path, value (SI; "initial / tuned" where the presets
+    differ) and the field's description. ``tests/circuits/test_parameters.py`` checks that the
+    document holds exactly this table.
+    """
+    def fmt(value):
+        if isinstance(value, float):
+            return f"{value:g}"
+        if isinstance(value, tuple):
+            return "(" + ", ".join(f"{v:g}" for v in value) + ")"
+        return str(value)
+
+    rows = []
+
+    def walk(a, b, prefix):
+        for name, info in type(a).model_fields.items():
+            va, vb = getattr(a, name), getattr(b, name)
+            if isinstance(va, BaseModel):
+                walk(va, vb, f"{prefix}{name}.")
+                continue
+            value = fmt(va) if va == vb else f"{fmt(va)} / {fmt(vb)}"
+            text = (info.description or "").replace("|", "/")
+            rows.append(f"| `{prefix}{name}` | {value} | {text} |")
+    walk(report_initial(), report_tuned(), "")
+    head = ["| parameter | value (SI; initial / tuned where they differ) "
+            "| description and source |", "|---|---|---|"]
+    return "\n".join(head + rows)

@@ -20,7 +20,9 @@ Tables
 ``main_spool_area``           A_H(x_m), main spool, both metering edges (4.4.2, figure 4.14a)
 ``pilot_orifice_areas``       the fixed orifices A4, A5, A6, A7, supply, drain, check balls
 ``nc_flow_map`` / ``no_flow_map``  duty-cycle-averaged Q(DT, dp) of the PVE solenoid valves
-                              (4.5.4 figure 4.22; anchors from figures 4.55 and 4.56)
+                              (4.5.4 figure 4.22; anchors from figures 4.55 and 4.56); the
+                              PVE valves run on them with ``pve.flow_map = "tables"``
+                              (``pwm_valve.MappedPWMValve``)
 """
 
 from __future__ import annotations
@@ -203,7 +205,8 @@ def main_spool_area(dead_band: float = mm(1.5), stroke: float = mm(7.0),
                     anchors=MAIN_SPOOL_LAB_ANCHORS, supply_voltage: float = 11.5,
                     dp: float = bar(5.0), cd: float = 0.6, rho: float = 900.0,
                     input_gain: float = 0.028, input_offset: float = -0.014,
-                    position_scale: float = 1.0) -> AreaTable:
+                    position_scale: float = 1.0,
+                    shape: tuple[float, float] | None = None) -> AreaTable:
     """A_H(x_m): main spool opening, the same for the meter-in (P_K -> work port) and meter-out
     (work port -> tank) edges, symmetric in x_m.
 
@@ -221,14 +224,23 @@ def main_spool_area(dead_band: float = mm(1.5), stroke: float = mm(7.0),
     c3 = 0.3229 /mm; slope > 0 everywhere (monotone), A_H(3.75 mm) = 13 mm^2. The fitted points
     scatter +-8 % around the curve (the 1.98 L/min point, within the +-1 L/min accuracy, +41 %).
 
+    ``shape = (c2, c3)`` [-, 1/m] gives the cubic directly (c1 still from the 7 mm anchor)
+    instead of fitting it to ``anchors``; :func:`circuits.crossval.identify` uses it.
+
     ``position_scale`` maps the commanded to the actual travel, x_m = scale * x_set. The default
     1.0 is the report's own assumption (eq 4.133). A model with the LVDT of eq 4.113 settles at
     x_m = (x_set - e) / 0.945: about 6 % more travel, less the small proportional error e needed
     to hold the spool against its spring; check the model's steady flows against the sweep and
     refit with e.g. ``position_scale=1/0.945`` if they come out high.
     """
-    c1, c2, c3 = _main_spool_cubic(dead_band, stroke, area_at_stroke, anchors, supply_voltage,
-                                   dp, cd, rho, input_gain, input_offset, position_scale)
+    if shape is None:
+        c1, c2, c3 = _main_spool_cubic(dead_band, stroke, area_at_stroke, anchors,
+                                       supply_voltage, dp, cd, rho, input_gain, input_offset,
+                                       position_scale)
+    else:
+        c2, c3 = shape
+        u_full = stroke - dead_band
+        c1 = (area_at_stroke - c2 * u_full**2 - c3 * u_full**3) / u_full
     n = int(round(stroke / step))
     half = np.unique(np.concatenate([np.linspace(0.0, stroke, n + 1), [dead_band]]))
     x = np.concatenate([-half[:0:-1], half])

@@ -297,3 +297,30 @@ def test_user_supplied_flow_map():
     with pytest.raises(ValueError, match="shape"):
         tables.SolenoidFlowMap(name="bad", kind="NC", duty=[0.0, 1.0], dp=[0.0, 1e6],
                                flow=[[0.0, 0.0]], anchors=(), source="test")
+
+
+def test_documented_parameter_table_is_the_code_s():
+    """docs/pvg32_model.md section 12 is generated from the parameter models; no drift."""
+    from pathlib import Path
+
+    from circuits.pvg32.parameters import parameter_table
+    doc = (Path(__file__).parents[2] / "docs" / "pvg32_model.md").read_text()
+    assert parameter_table() in doc
+
+
+def test_documented_tables_are_linear_as_evaluated():
+    """A3 and A1 are documented as linear edges (C.1.2, tables.py); the model's orifices must
+    evaluate them so: A3 at 2.1 mm is 60 mm^2/mm x 0.1 mm = 6.0 mm^2 (a 4-point pchip gave
+    0.59), A1 at 2.6 mm is 20 mm^2/mm x 0.1 mm = 2.0 mm^2."""
+    from circuits.pvg32.modules import TABLE_STEP, _table, opening_areas
+    from pvgraph import expr as E
+    areas = opening_areas(report_tuned())
+    for name, x, expected in (("A3", mm(2.1), mm2(6.0)), ("A3", mm(3.5), mm2(90.0)),
+                              ("A1", mm(2.6), mm2(2.0)), ("A1", mm(1.0), mm2(34.0))):
+        kw = _table(areas[name])
+        table = E.Table(kw["x_table"], kw["A_table"], method="pchip")
+        assert table.value(x) == pytest.approx(expected, rel=1e-9), name
+    # the rounding at a kink is confined to one resampling step
+    kw = _table(areas["A3"])
+    table = E.Table(kw["x_table"], kw["A_table"], method="pchip")
+    assert table.value(mm(2.0) + TABLE_STEP) == pytest.approx(mm2(60.0) * TABLE_STEP / mm(1.0))

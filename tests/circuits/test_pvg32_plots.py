@@ -22,7 +22,8 @@ def test_opening_areas_are_the_ones_the_model_uses(tmp_path):
     pvb = build_pvb(p)
     pa = pvb["PA"].params                                  # P -> A edge, x > 0 half of A_H
     a_h = areas["A_H"]
-    assert np.allclose(pa.A_table, np.where(a_h.x > 0, a_h.area, 0.0))
+    x = np.asarray(pa.x_table)                             # resampled every TABLE_STEP
+    assert np.allclose(pa.A_table, np.where(x > 0, a_h(x), 0.0))
     # A2 = pi D x_k (eq. 4.38)
     a2 = areas["A2"]
     assert np.allclose(a2.area, np.pi * p.compensator.opening_diameter * a2.x)

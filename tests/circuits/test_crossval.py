@@ -1,0 +1,116 @@
+"""Roles of the lab values, the identification procedure and the cross-validation."""
+
+import numpy as np
+import pytest
+
+from circuits import crossval as X
+from circuits.scenarios import all_scenarios, get_scenario
+from circuits.pvg32.parameters import report_tuned
+from pvgraph.units import bar, to_bar, to_lpm
+
+
+def test_tuned_roles_mark_what_the_report_fitted():
+    roles = X.tuned_roles()
+    # the 12 A_H anchors' flows are fitted; the opening tests' flows are not
+    fit_flows = sorted(n for (n, q), r in roles.items() if q == "Q_total" and r == "fit")
+    assert len(fit_flows) == 12
+    assert roles[("test-2", "Q_total")] == "held-out"
+    assert roles[("test-5", "Q_total")] == "held-out"
+    # neutral and saturated flows, and Q_branch with L2 closed, are trivial
+    assert roles[("sweep-1", "Q_total")] == roles[("sweep-2", "Q_total")] == "trivial"
+    assert roles[("sweep-7", "Q_total")] == "trivial"
+    assert roles[("test-1", "Q_branch")] == "trivial"
+    # the return line came from Pb of tests 1, 4, 7, 10; the load constants from tests 2 and 8
+    assert [roles[(f"test-{k}", "Pb")] for k in (1, 4, 7, 10)] == ["fit"] * 4
+    assert roles[("test-3", "Pb")] == "held-out"
+    assert roles[("test-2", "Pf")] == roles[("test-8", "Pm")] == "fit"
+    assert roles[("test-5", "Pf")] == "held-out"
+    assert set(roles.values()) == set(X.ROLES)
+
+
+def test_table_4_8_constants_are_single_tests_q_over_dp():
+    """The provenance claimed for the tuned preset: K_L1 and K_L3 (small) are test 2's Q/dp."""
+    m = get_scenario("test-2").measured
+    k1 = to_lpm(m.Q_branch) / to_bar(m.Pm - m.Pb)
+    k3 = to_lpm(m.Q_total - m.Q_branch) / to_bar(m.Pf - m.Pb)
+    assert k1 == pytest.approx(0.2105, abs=5e-4)
+    assert k3 == pytest.approx(0.2203, abs=5e-4)
+    m8 = get_scenario("test-8").measured
+    assert to_lpm(m8.Q_branch) / to_bar(m8.Pm - m8.Pb) == pytest.approx(0.3544, abs=5e-4)
+
+
+def test_load_law_fit_recovers_a_known_law():
+    dp = np.array([10.0, 20.0, 35.0, 60.0])
+    q = 0.2 * dp + 0.001 * dp**2
+    k, b, law = X._fit_load_law([(d, v, "s", ()) for d, v in zip(dp, q)])
+    assert (k, b) == pytest.approx((0.2, 0.001), rel=1e-9)
+    assert law == "K dp + b dp^2"
+    # one pressure level: laminar through the origin
+    k, b, law = X._fit_load_law([(30.0, 6.0, "s", ()), (31.0, 6.2, "s", ())])
+    assert (b, law) == (0.0, "laminar") and k == pytest.approx(0.2, rel=1e-3)
+
+
+def test_pvp_margin_reachable_from_the_spring():
+    m = X.pvp_margin_reachable(report_tuned())
+    # 300 N / 254.5 mm^2 and (300 + 15000 * 2 mm) N / 254.5 mm^2 (eq 4.17-4.19, C.1.2)
+    assert to_bar(m["preload_only"]) == pytest.approx(11.79, abs=0.01)
+    assert to_bar(m["at_A3_opening"]) == pytest.approx(12.97, abs=0.01)
+
+
+def test_judge_counts_held_out_points_with_absolute_tolerances():
+    def rec(s, q, err, role="held-out"):
+        return {"grouping": "g", "scenario": s, "quantity": q, "error": err, "role": role}
+    records = [rec("test-1", "Q_total", 0.9), rec("test-1", "Pf", 1.9), rec("test-1", "Pm", 0.1),
+               rec("test-1", "Pb", -2.1),                       # one pressure 0.1 bar over
+               rec("test-4", "Q_total", -1.2), rec("test-4", "Pf", 0.0),
+               rec("test-4", "Pm", 0.0), rec("test-4", "Pb", 0.0, "fit"),    # not judged
+               rec("sweep-1", "Q_total", 0.0, "trivial"),                    # neutral: skipped
+               rec("sweep-5", "Q_total", 0.5), rec("sweep-5", "Pf", 1.0),
+               rec("sweep-5", "Pm", 1.0), rec("sweep-5", "Pb", 1.0)]
+    t = X.judge(records)
+    ok, total, _ = t["flow within 1 L/min (non-neutral points)"]
+    assert (ok, total) == (2, 3)
+    ok, total, rows = t["Pf, Pm, Pb within 2 bar (step tests)"]
+    assert (ok, total) == (0, 1) and rows[0][1] == pytest.approx(2.1)
+    assert t["Pf, Pm, Pb within 2 bar (non-neutral sweep points)"][:2] == (1, 1)
+
+
+@pytest.mark.slow
+def test_one_voltage_fold_predicts_the_held_out_tests():
+    """Identify without U = 4.62 V, predict tests 4-6 and compare with the lab (B.7)."""
+    held = [get_scenario(f"test-{k}") for k in (4, 5, 6)]
+    train = [s for s in all_scenarios() if s.U_input != 4.62]
+    ident = X.identify(train)
+    assert 10.5 <= ident.params.rig.supply_voltage <= 12.5
+    assert not ({("test-4", "Q_total"), ("test-5", "Pf")} & ident.fitted)
+    pred = X.steady_values(ident.params, held, sweep_load=ident.sweep_load)
+    for s in held:
+        v = pred[s.name]
+        assert abs(to_lpm(v["Q_total"] - s.measured.Q_total)) <= 1.0, s.name
+        assert abs(v["Pb"] - s.measured.Pb) <= bar(1.0), s.name
+        assert abs(v["Pf"] - s.measured.Pf) <= bar(2.0), s.name
+        # the compensator holds about 5 bar across the main spool (2.2, 4.7.3)
+        assert 4.0 < to_bar(v["drop"]) < 6.0
+
+
+@pytest.mark.slow
+def test_cross_validation_held_out_targets():
+    cv = X.cross_validate(workers=2)
+    assert len(cv.folds) == 11 + 3
+    assert not [r for r in cv.records if r["error"] is None]
+    t = X.judge(cv.records, "voltage")
+    # the flow target (>= 15 of 17 held-out points within the meter's 1 L/min) is met; the
+    # pressure target (>= 10 of 12) is not: the load's own scatter between voltage groups
+    # (Q/dp of one setting 5-10 % apart at equal dp) limits it (docs/pvg32_model.md, 8b)
+    assert t["flow within 1 L/min (non-neutral points)"][0] >= 15
+    assert t["Pf, Pm, Pb within 2 bar (step tests)"][0] >= 7
+    assert t["Pf, Pm, Pb within 2 bar (non-neutral sweep points)"][0] >= 4
+    # every held-out record was predicted without its scenario's data
+    for fold in cv.folds:
+        assert "error" not in fold["sources"]
+
+
+def test_identify_rejects_an_unknown_load_law():
+    from pvgraph.errors import PvgraphError
+    with pytest.raises(PvgraphError, match="load_law"):
+        X.identify(all_scenarios(), load_law="turbulent")
