@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from circuits.calibration import (DEFAULT_FIT, TABLE_4_14, Datum, RigSteadyModel,
-                                  calibrate_rig, calibration_data, fit_parameter)
+                                  calibrate_rig, calibration_data, fit_parameter,
+                                  opening_follows_supply)
 from circuits.pvg32.parameters import report_tuned, with_values
 from pvgraph.analysis import calibrate
 from pvgraph.errors import ParameterError
@@ -31,9 +32,11 @@ def test_rig_parameters_recovered_from_synthetic_data():
     """Data made by the model itself at U_s = 11.2 V, Q_p = 16.0 L/min, with gauge noise; the fit
     starts from table 4.9 (12 V, 17 L/min) and must bracket the truth with useful intervals."""
     rng = np.random.default_rng(11)
-    truth = with_values(report_tuned(), {"rig.supply_voltage": 11.2, "rig.pump_flow": lpm(16.0)})
+    # A_H follows the supply voltage, as calibrate_rig() fits it (opening_follows_supply)
+    base = opening_follows_supply(report_tuned())
+    truth = with_values(base, {"rig.supply_voltage": 11.2, "rig.pump_flow": lpm(16.0)})
     data = _synthetic(truth, ["rig.supply_voltage", "rig.pump_flow"], rng)
-    start = with_values(report_tuned(), {"rig.supply_voltage": 12.0, "rig.pump_flow": lpm(17.0)})
+    start = with_values(base, {"rig.supply_voltage": 12.0, "rig.pump_flow": lpm(17.0)})
     params = [fit_parameter(p, start) for p in ("rig.supply_voltage", "rig.pump_flow")]
     model = RigSteadyModel(start, data)
     fit = calibrate(model, [d.value for d in data], params, sigma=[d.sigma for d in data],
