@@ -106,29 +106,32 @@ def initial_step(yp, ewt_mask, t_span_length, max_step=None, first_step=None):
 def bdf_coefficients(h, k, psi):
     """Return IDA's step coefficients for step h at order k: (psi, sigma, beta, gamma, cj, ck).
 
-    ``beta`` is a column array (rows of the history scaled to phi*), ``gamma`` holds
-    gamma[1..k] for the y' predictor, cj is the leading coefficient and ck the
-    variable-step error constant.
+    ``beta`` (a list) scales the history rows to phi*, ``gamma`` holds gamma[1..k] for the
+    y' predictor (an array), cj is the leading coefficient and ck the variable-step error
+    constant.
     """
     psi = list(psi)
-    alpha = [1.0] * (k + 1)
     beta = [1.0] * (k + 1)
     sigma = [1.0] * (k + 1)
     gamma = [0.0] * (k + 1)
+    alpha_prev = 1.0
+    alpha_sum = 0.0 + 1.0       # sum(alpha[:k]), summed in index order
     temp1 = h
     for i in range(1, k + 1):
         temp2 = psi[i - 1]
         psi[i - 1] = temp1
         beta[i] = beta[i - 1] * temp1 / temp2
         temp1 = temp2 + h
-        alpha[i] = h / temp1
-        sigma[i] = i * sigma[i - 1] * alpha[i]
-        gamma[i] = gamma[i - 1] + alpha[i - 1] / h
+        alpha = h / temp1
+        sigma[i] = i * sigma[i - 1] * alpha
+        gamma[i] = gamma[i - 1] + alpha_prev / h
+        if i < k:
+            alpha_sum += alpha
+        alpha_prev = alpha
     psi[k] = temp1
     alphas = -HARMONIC[k]
-    alpha0 = -sum(alpha[:k])
-    ck = max(abs(alpha[k] + alphas - alpha0), alpha[k])
-    return (psi, sigma, np.array(beta)[:, None], np.array(gamma[1:]), -alphas / h, ck)
+    ck = max(abs(alpha_prev + alphas + alpha_sum), alpha_prev)
+    return (psi, sigma, beta, np.array(gamma[1:]), -alphas / h, ck)
 
 
 def dominant_names(weighted, var_names, count=N_CULPRITS):
@@ -213,6 +216,7 @@ class IDAIntegrator:
         self.inv_n = 1.0 / n
         self.phi = np.zeros((max_order + 2, n))
         self.ee = np.zeros(n)
+        self._err_rows = np.empty((2, n))     # scratch for the order k-1, k-2 estimates
         # counters over the whole integration
         self.nst = 0
         self.nre = 0
@@ -266,7 +270,10 @@ class IDAIntegrator:
         w *= self.rtol
         w += self.atol
         self.ewt = np.divide(1.0, w, out=w)
-        self.ewt_err = self.ewt if self.error_mask is None else self.ewt * self.error_mask
+        if self.error_mask is None:
+            self.ewt_err = w
+        else:
+            self.ewt_err = np.multiply(w, self.error_mask)
 
     # -------------------------------------------------------------------- step
     def step(self):
@@ -297,8 +304,8 @@ class IDAIntegrator:
             psi, sigma, beta, gamma, cj, ck = coeffs
             self.cjlast = self.cj
             self.cj = cj
-            if ns <= kk:
-                phi[ns:kk + 1] *= beta[ns:kk + 1]
+            for i in range(ns, kk + 1):
+                phi[i] *= beta[i]
             tn = saved_t + hh
             # --- corrector and error test
             status = self._newton(tn, kk, hh, cj, gamma)
@@ -315,7 +322,7 @@ class IDAIntegrator:
                 err_km1 = 0.0
                 if kk > 2:
                     # estimates at orders k-1 and k-2 in one pass: ee + phi[k] (+ phi[k-1])
-                    d = np.add.accumulate(phi[kk:kk - 2:-1], axis=0)
+                    d = np.add.accumulate(phi[kk:kk - 2:-1], axis=0, out=self._err_rows)
                     d += ee
                     d *= ew
                     d *= d
@@ -334,8 +341,8 @@ class IDAIntegrator:
                 status = ERROR_FAIL
             # --- failure: restore the history and choose a smaller step (IDAHandleNFlag)
             self.phase = 1
-            if ns <= kk:
-                phi[ns:kk + 1] /= beta[ns:kk + 1]
+            for i in range(ns, kk + 1):
+                phi[i] /= beta[i]
             if status == ERROR_FAIL:
                 self._fail = (ERROR_FAIL, ee * ew)
                 nef += 1
@@ -400,7 +407,7 @@ class IDAIntegrator:
         phi = self.phi
         fun = self.fun
         ewt = self.ewt
-        inv_n = 1.0 / self.n
+        inv_n = self.inv_n
         k1 = kk + 1
         call_setup = self.force_setup or self.nst_restart == 0
         cjratio = cj / self.cjold
@@ -554,10 +561,8 @@ class IDAIntegrator:
         if kused < maxord:
             phi[kused + 1] = ee
         phi[kused] += ee
-        if kused > 1:
-            phi[:kused + 1] = np.add.accumulate(phi[kused::-1], axis=0)[::-1]
-        else:
-            phi[0] += phi[1]
+        for j in range(kused - 1, -1, -1):
+            phi[j] += phi[j + 1]
         self._set_weights(phi[0])
 
     # ------------------------------------------------------------ dense output

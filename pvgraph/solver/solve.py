@@ -364,8 +364,8 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     }
     return DAEResult(
         t=np.asarray(ts, dtype=float),
-        y=np.vstack(ys) if ys else np.empty((0, n)),
-        yp=np.vstack(yps) if yps else np.empty((0, n)),
+        y=np.array(ys, dtype=float) if ys else np.empty((0, n)),
+        yp=np.array(yps, dtype=float) if yps else np.empty((0, n)),
         events=records,
         t_events=np.array([rec.t for rec in records], dtype=float),
         stats=stats,

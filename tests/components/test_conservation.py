@@ -68,6 +68,8 @@ def build(spec):
         nodes[i].append(f"r{i}.b")
     for k, (kind, picks) in enumerate(parts):
         n_ports, make, names = PARTS[kind]
+        if n_ports > n_nodes:                    # (checked first: the search below would
+            continue                             # never end once every node is used)
         used = []
         for pick in picks:                       # distinct nodes for the ports of one part
             node = pick % n_nodes
@@ -76,8 +78,6 @@ def build(spec):
             used.append(node)
             if len(used) == n_ports:
                 break
-        if n_ports > n_nodes:
-            continue
         part = c.add(f"{kind}{k}", make())
         for name, node in zip(names, used):
             nodes[node].append(f"{kind}{k}.{name}")
