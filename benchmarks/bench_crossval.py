@@ -14,8 +14,8 @@ import time
 
 from _machine import machine
 
-from circuits import crossval, validation
-from circuits.pvg32.parameters import report_tuned
+from pvgraph.circuits import crossval, validation
+from pvgraph.circuits.pvg32.parameters import report_tuned
 
 
 def timed(fn, repeats):

@@ -96,8 +96,8 @@ def chain_case(n=20_000):
 
 def rig_case():
     """Rig step test 2 as in bench_pvg32.py, through solve_dae on the compiled System."""
-    from circuits.pvg32.parameters import report_tuned
-    from circuits.rig import build_rig, laminar_load
+    from pvgraph.circuits.pvg32.parameters import report_tuned
+    from pvgraph.circuits.rig import build_rig, laminar_load
     import pvgraph.solver as solver_package
     from pvgraph.simulate import simulate
 

@@ -20,7 +20,7 @@ Identification (:func:`identify`)
        4.7.2, eq. 4.132): Q = K dp + b dp |dp| with b >= 0 (non-negative least squares) where
        the training data span two pressure levels, else the laminar Q = K dp;
     2. supply voltage U_s and the shape of the main-spool opening A_H (the cubic of
-       :func:`circuits.pvg32.tables.main_spool_area`, with the report's dead band and 7 mm
+       :func:`pvgraph.circuits.pvg32.tables.main_spool_area`, with the report's dead band and 7 mm
        area fixed) by least squares on the training flows, with the spool travel commanded by
        the PVE (eq. 4.110, 4.133) and the drop the compensator holds;
     3. one pass of the full model's steady states at the training points: A_H refitted at the

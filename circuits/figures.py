@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 import sys
 
-from circuits.plotting import plot_step_comparison
+from pvgraph.circuits.plotting import plot_step_comparison
 
 from .pvg32.parameters import report_tuned, with_values
 from .validation import run_scenario

@@ -1,8 +1,8 @@
 """The PVG 32 validation figures: steady flow against voltage, held-out errors of the
 cross-validation, pressure traces after the steps, model variants side by side.
 
-The first and third take the :class:`~circuits.validation.ScenarioResult` list of
-:func:`circuits.validation.validate` and write a PNG (matplotlib, Agg backend).
+The first and third take the :class:`~pvgraph.circuits.validation.ScenarioResult` list of
+:func:`pvgraph.circuits.validation.validate` and write a PNG (matplotlib, Agg backend).
 """
 
 from __future__ import annotations

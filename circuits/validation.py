@@ -1,6 +1,6 @@
 """Validation of the PVG 32 model against the lab measurements (report 4.7, appendix B.7).
 
-Each of the 19 scenarios (:mod:`circuits.scenarios`) runs the full nonlinear valve on the rig:
+Each of the 19 scenarios (:mod:`pvgraph.circuits.scenarios`) runs the full nonlinear valve on the rig:
 the valve starts at rest and settles with L2 in its initial state; solenoid-step tests then
 switch L2 and run on. The steady values at the end are compared with the measured ones, and the
 pressure drop over L3 after the step is kept as a trace (the report's figures 4.41-4.48).
@@ -10,7 +10,7 @@ into the ``{scenario, quantity, unit, measured, simulated, error, role}`` record
 ``pvgraph validate --json``; ``targets()`` checks the acceptance targets with absolute
 tolerances (flow 1 L/min, pressures 2 bar).
 
-Every value carries its ``role`` (:mod:`circuits.crossval`): ``fit`` if the parameters were
+Every value carries its ``role`` (:mod:`pvgraph.circuits.crossval`): ``fit`` if the parameters were
 identified from it, ``held-out`` if not, ``trivial`` if any model passes it. For the report's
 tuned preset, 13 of the 17 non-neutral flows are ``fit`` (the A_H shape and the pump flow come
 from them); the held-out numbers come from ``pvgraph validate --cross-validate``.
@@ -157,7 +157,7 @@ def comparison_records(results, roles: dict | None = None) -> list[dict]:
     """``{scenario, quantity, unit, measured, simulated, error, role, report_simulated}``.
 
     Table units (bar, L/min); ``roles`` maps ``(scenario, quantity)`` to its role (default: the
-    tuned preset's, :func:`circuits.crossval.tuned_roles`).
+    tuned preset's, :func:`pvgraph.circuits.crossval.tuned_roles`).
     """
     roles = roles if roles is not None else tuned_roles()
     out = []

@@ -40,11 +40,13 @@ from typing import Any, Callable
 
 from .errors import PvgraphError
 
-__all__ = ["ENTRY_POINT_GROUP", "ENV_VAR", "CircuitEntry", "CommandEntry", "Extension",
+__all__ = ["ENTRY_POINT_GROUP", "ENV_VAR", "ENTRY_POINTS_VAR", "CircuitEntry", "CommandEntry", "Extension",
            "Registry", "registry", "RegistryError"]
 
 ENTRY_POINT_GROUP = "pvgraph.circuits"
 ENV_VAR = "PVGRAPH_PLUGINS"
+#: set to "0" to skip the installed entry points (only PVGRAPH_PLUGINS is read then)
+ENTRY_POINTS_VAR = "PVGRAPH_ENTRY_POINTS"
 
 
 class RegistryError(PvgraphError):
@@ -176,7 +178,9 @@ def _plugin_functions():
 
     found = []
     seen = set()
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
+    installed = entry_points(group=ENTRY_POINT_GROUP) \
+        if os.environ.get(ENTRY_POINTS_VAR, "1").strip() != "0" else ()
+    for ep in installed:
         if ep.value in seen:
             continue
         seen.add(ep.value)

@@ -203,7 +203,7 @@ import time
 
 from pydantic import Field
 
-from components import FlowSource, Orifice, Tank, VolumeNode
+from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
 from pvgraph import Circuit, Component, Hydraulic, Params
 
 
@@ -398,7 +398,7 @@ def test_pvgraph_runs_without_the_pvg32_application(rig_file, tmp_path):
     import subprocess
     import sys
     code = (
-        "import sys; sys.modules['circuits'] = None\n"
+        "import sys; sys.modules['pvgraph.circuits'] = None\n"
         "from pvgraph.cli import main\n"
         f"assert main(['simulate', {rig_file + ':build'!r}, '--t-end', '0.5']) == 0\n"
         "try:\n"
@@ -409,7 +409,7 @@ def test_pvgraph_runs_without_the_pvg32_application(rig_file, tmp_path):
         "    raise AssertionError('validate should be unknown')\n"
         "assert main(['simulate', 'rig']) == 2\n"
         "print('standalone ok')\n")
-    env = {**os.environ, "PVGRAPH_PLUGINS": ""}
+    env = {**os.environ, "PVGRAPH_PLUGINS": "", "PVGRAPH_ENTRY_POINTS": "0"}
     proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                           timeout=120)
     assert proc.returncode == 0, proc.stderr

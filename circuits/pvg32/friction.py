@@ -7,7 +7,7 @@
     F = sigma0 z + sigma1 der(z) + b v                   (force on the spool, opposing v)
 
 ``flange.f = F`` (the force the friction exerts on the flange's node is -F, as for
-:class:`components.mechanical.Friction`). At rest the bristles act as a stiff spring that holds
+:class:`pvgraph.components.mechanical.Friction`). At rest the bristles act as a stiff spring that holds
 any force below F_c with a pre-sliding travel of at most F_c / sigma0; above it the spool
 slides with F -> F_c sign(v) + b v. This is the +-F_c / A dead zone of the report's Coulomb term
 (table 4.14: 50 N on the compensator, +-1.96 bar across its 2.545 cm^2) that the smooth

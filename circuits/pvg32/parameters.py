@@ -4,7 +4,7 @@ Every value comes from the 2009 PVG 32 modelling report (not shipped with pvgrap
 carries the section, equation or table in its field description. Everything is SI (Pa, m, m^2,
 m^3, m^3/s, kg, N, N/m, N s/m, s, rad); report units are converted here, at the edge, with
 the helpers of :mod:`pvgraph.units`. Opening-area tables and the solenoid-valve flow maps are in
-:mod:`circuits.pvg32.tables`; the model they feed is summarised in ``docs/pvg32_model.md``.
+:mod:`pvgraph.circuits.pvg32.tables`; the model they feed is summarised in ``docs/pvg32_model.md``.
 
 Presets
 -------
@@ -356,7 +356,7 @@ class SolenoidValveParams(_Params):
     """One PVE on/off solenoid valve, driven by a duty cycle (4.5.4, 4.5.5).
 
     The duty-cycle-averaged flow is Q = map(DT, |dp|) sign(dp) with the NC or NO map of
-    :mod:`circuits.pvg32.tables` (figure 4.22). The report delays the duty-cycle signal by the
+    :mod:`pvgraph.circuits.pvg32.tables` (figure 4.22). The report delays the duty-cycle signal by the
     switching delay ("time delay implemented in the control", 4.5.5).
     """
 
@@ -461,10 +461,10 @@ class PVEParams(_Params):
     flow_map: Literal["separable", "tables"] = Field(
         "separable",
         description="Flow map of NC1-NO4 [-]: 'separable' = Q_ref(DT) sqrt(dp/dp_ref) of "
-                    "components.hydraulic.solenoid (figure 4.55's lines at the report's "
+                    "pvgraph.components.hydraulic.solenoid (figure 4.55's lines at the report's "
                     "linearisation pressures, the gains of its linear model 4.8-4.9); 'tables' = "
-                    "the two-dimensional maps of circuits.pvg32.tables (also figure 4.56), "
-                    "circuits.pvg32.pwm_valve. docs/pvg32_model.md section 6 compares them")
+                    "the two-dimensional maps of pvgraph.circuits.pvg32.tables (also figure 4.56), "
+                    "pvgraph.circuits.pvg32.pwm_valve. docs/pvg32_model.md section 6 compares them")
 
     @property
     def supply_orifice_area(self) -> float:
@@ -536,7 +536,7 @@ class RigSolenoidValveParams(_Params):
         None, gt=0.0, le=1.0,
         description="Opening/closing time of L2, a first-order lag [s]. Not given in the "
                     "report (the measured traces are aligned to the step, 4.7.3); None = "
-                    "circuits.rig.L2_SWITCH_TIME, 20 ms (a fast cartridge valve of this size)")
+                    "pvgraph.circuits.rig.L2_SWITCH_TIME, 20 ms (a fast cartridge valve of this size)")
 
 
 class RigParams(_Params):

@@ -1,5 +1,5 @@
 """The PVE's PWM-driven NC and NO solenoid valves on the two-dimensional flow maps of
-:mod:`circuits.pvg32.tables` (report 4.5.4-4.5.5, figures 4.22, 4.55, 4.56).
+:mod:`pvgraph.circuits.pvg32.tables` (report 4.5.4-4.5.5, figures 4.22, 4.55, 4.56).
 
 ::
 

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from circuits.pvg32.parameters import PVG32Params
+from pvgraph.circuits.pvg32.parameters import PVG32Params
 from pvgraph.units import BAR, bar, mm, mm2
 
 __all__ = [
@@ -225,7 +225,7 @@ def main_spool_area(dead_band: float = mm(1.5), stroke: float = mm(7.0),
     scatter +-8 % around the curve (the 1.98 L/min point, within the +-1 L/min accuracy, +41 %).
 
     ``shape = (c2, c3)`` [-, 1/m] gives the cubic directly (c1 still from the 7 mm anchor)
-    instead of fitting it to ``anchors``; :func:`circuits.crossval.identify` uses it.
+    instead of fitting it to ``anchors``; :func:`pvgraph.circuits.crossval.identify` uses it.
 
     ``position_scale`` maps the commanded to the actual travel, x_m = scale * x_set. The default
     1.0 is the report's own assumption (eq 4.133). A model with the LVDT of eq 4.113 settles at

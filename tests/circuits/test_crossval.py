@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from circuits import crossval as X
-from circuits.scenarios import all_scenarios, get_scenario
-from circuits.pvg32.parameters import report_tuned
+from pvgraph.circuits import crossval as X
+from pvgraph.circuits.scenarios import all_scenarios, get_scenario
+from pvgraph.circuits.pvg32.parameters import report_tuned
 from pvgraph.units import bar, to_bar, to_lpm
 
 

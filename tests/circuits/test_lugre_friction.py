@@ -2,10 +2,10 @@
 
 import pytest
 
-from circuits.pvg32.friction import LuGreFriction
-from components.mechanical import SpoolMass
-from components.mechanical.inputs import ForceInput
-from components.signal.sources import Constant
+from pvgraph.circuits.pvg32.friction import LuGreFriction
+from pvgraph.components.mechanical import SpoolMass
+from pvgraph.components.mechanical.inputs import ForceInput
+from pvgraph.components.signal.sources import Constant
 from pvgraph import Circuit
 from pvgraph.simulate import simulate
 

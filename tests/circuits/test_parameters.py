@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from circuits.pvg32.parameters import (
+from pvgraph.circuits.pvg32.parameters import (
     CompensatorParams,
     FluidParams,
     MainSpoolParams,
@@ -21,7 +21,7 @@ from circuits.pvg32.parameters import (
     report_initial,
     report_tuned,
 )
-from circuits.pvg32 import tables
+from pvgraph.circuits.pvg32 import tables
 from pvgraph.units import bar, cm3, lpm, lpm_per_bar, mm, mm2, to_bar, to_mm2
 
 PARAM_MODELS = [FluidParams, PVPParams, CompensatorParams, MainSpoolParams, PVEParams, RigParams,
@@ -303,7 +303,7 @@ def test_documented_parameter_table_is_the_code_s():
     """docs/pvg32_model.md section 12 is generated from the parameter models; no drift."""
     from pathlib import Path
 
-    from circuits.pvg32.parameters import parameter_table
+    from pvgraph.circuits.pvg32.parameters import parameter_table
     doc = (Path(__file__).parents[2] / "docs" / "pvg32_model.md").read_text()
     assert parameter_table() in doc
 
@@ -312,7 +312,7 @@ def test_documented_tables_are_linear_as_evaluated():
     """A3 and A1 are documented as linear edges (C.1.2, tables.py); the model's orifices must
     evaluate them so: A3 at 2.1 mm is 60 mm^2/mm x 0.1 mm = 6.0 mm^2 (a 4-point pchip gave
     0.59), A1 at 2.6 mm is 20 mm^2/mm x 0.1 mm = 2.0 mm^2."""
-    from circuits.pvg32.modules import TABLE_STEP, _table, opening_areas
+    from pvgraph.circuits.pvg32.modules import TABLE_STEP, _table, opening_areas
     from pvgraph import expr as E
     areas = opening_areas(report_tuned())
     for name, x, expected in (("A3", mm(2.1), mm2(6.0)), ("A3", mm(3.5), mm2(90.0)),

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from circuits.pvg32 import tables
-from circuits.pvg32.pwm_valve import KNOT_TOL, MappedPWMValve
-from components.hydraulic.solenoid import PWMValve
+from pvgraph.circuits.pvg32 import tables
+from pvgraph.circuits.pvg32.pwm_valve import KNOT_TOL, MappedPWMValve
+from pvgraph.components.hydraulic.solenoid import PWMValve
 from pvgraph.simulate import simulate
 from pvgraph.testing import Signal, bench_circuit
 from pvgraph.units import bar

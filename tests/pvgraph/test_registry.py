@@ -7,11 +7,11 @@ import textwrap
 
 import pytest
 
-from pvgraph.registry import ENV_VAR, Registry, RegistryError
+from pvgraph.registry import ENTRY_POINTS_VAR, ENV_VAR, Registry, RegistryError
 
 
 def _build():
-    from components import Tank
+    from pvgraph.components import Tank
     from pvgraph import Circuit
     c = Circuit("t")
     c.add("tank", Tank())
@@ -36,7 +36,7 @@ def test_registering_and_clashes():
 PLUGIN = '''
 def register(registry):
     from pvgraph import Circuit
-    from components import FlowSource, Orifice, Tank
+    from pvgraph.components import FlowSource, Orifice, Tank
 
     def press(Q=1e-4):
         c = Circuit("press")
@@ -73,6 +73,7 @@ def test_a_plugin_named_in_the_environment_reaches_the_command_line(tmp_path, mo
     (tmp_path / "my_plugin.py").write_text(PLUGIN)
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.setenv(ENV_VAR, "my_plugin")
+    monkeypatch.setenv(ENTRY_POINTS_VAR, "0")          # not the installed PVG 32 entry point
     assert main(["circuits"]) == 0
     out = capsys.readouterr().out
     assert "my machines:" in out and "press        the test press" in out
@@ -100,10 +101,10 @@ def test_the_framework_imports_no_application():
         import pvgraph, pvgraph.cli, pvgraph.plotting, pvgraph.analysis, pvgraph.modelfile
         import pvgraph.registry, pvgraph.fmi, pvgraph.units
         pvgraph.cli.build_parser()
-        print(sorted(m for m in sys.modules if m.split('.')[0] in ('circuits', 'components')))
+        print(sorted(m for m in sys.modules if m.split('.')[:2] in (['pvgraph', 'circuits'], ['pvgraph', 'components'])))
     """)
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          env={**os.environ, ENV_VAR: ""}, timeout=120)
+                          env={**os.environ, ENV_VAR: "", ENTRY_POINTS_VAR: "0"}, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "[]"
 

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from components.hydraulic import Tank, VariableOrifice, VolumeNode
+from pvgraph.components.hydraulic import Tank, VariableOrifice, VolumeNode
 from hydraulic_helpers import (VelocityDrive, fixed_observed, jacobian_fd_error, requires_solver,
                                value, vector)
 from pvgraph.circuit import Circuit
@@ -149,10 +149,10 @@ def _balanced_spool(u0=None, k=100.0):
     is algebraic and the table's slope is most of dF/dx (2 Cd dp cos(theta) dA/dx is some 30
     times k). With ``u0=None`` a position input holds the spool on the table's last point.
     """
-    from components.hydraulic import Orifice, PressureSource
-    from components.mechanical import LinearSpring
-    from components.mechanical.inputs import ForceInput, PositionInput
-    from components.signal import Constant, Ramp
+    from pvgraph.components.hydraulic import Orifice, PressureSource
+    from pvgraph.components.mechanical import LinearSpring
+    from pvgraph.components.mechanical.inputs import ForceInput, PositionInput
+    from pvgraph.components.signal import Constant, Ramp
     c = Circuit("kink")
     src = c.add("supply", PressureSource(p0=bar(50)))
     inlet = c.add("inlet", Orifice(A=mm2(40)))
