@@ -116,3 +116,29 @@ def test_bad_setups_are_named():
     run = CompiledRun(orifice_bench, outputs=["node.port.p"], steady=True)
     res = sweep(run, [{"orifice.area": 1e-6}], backend="serial")
     assert res[0].status == "failed" and "orifice.A" in res[0].error_message
+
+
+def test_reuse_compiled_gives_the_built_circuits_values_and_compiles_new_structures():
+    """Code that builds and compiles per call (a scenario runner) compiles each structure
+    once inside reuse_compiled(); the values are those of the circuit built."""
+    from pvgraph.circuit import _REUSE, reuse_compiled
+    with reuse_compiled():
+        n0, hits0 = _REUSE["compilations"], _REUSE["hits"]
+        first = orifice_bench(Q=1e-4, A=1e-6).compile()
+        second = orifice_bench(Q=2e-4, A=3e-6).compile()
+        assert _REUSE["compilations"] - n0 == 1 and _REUSE["hits"] - hits0 == 1
+        for system, Q, A in ((first, 1e-4, 1e-6), (second, 2e-4, 3e-6)):
+            assert steady_state(system, tol=1e-12)["node.port.p"] == pytest.approx(
+                analytic({}, Q=Q, A=A), rel=1e-9)
+        with pytest.warns(RecompileWarning, match=r"node\.air"):
+            orifice_bench(air=0.01).compile()
+        other = orifice_bench()                 # same parts, the orifice's ends swapped
+        other._connections = [other._connections[0][:2] + (other["orifice"].b,),
+                              (other["orifice"].a, other["tank"].port)]
+        flipped = other.compile()
+        assert _REUSE["compilations"] - n0 == 3
+        # flow now enters the orifice at b: the same drop, the orifice flow reversed
+        op = steady_state(flipped, tol=1e-12)
+        assert op["orifice.q"] == pytest.approx(-1e-4, rel=1e-9)
+    orifice_bench().compile()                   # outside the block: compiled as usual
+    assert _REUSE["compilations"] - n0 == 3
