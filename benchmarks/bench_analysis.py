@@ -65,10 +65,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _machine import machine  # noqa: E402
-from circuits.pvg32.parameters import report_tuned  # noqa: E402
-from circuits.rig import build_rig, laminar_load  # noqa: E402
-from circuits.scenarios import Scenario, get_scenario  # noqa: E402
-from circuits.validation import run_scenario, validate  # noqa: E402
+from pvgraph.circuits.pvg32.parameters import report_tuned  # noqa: E402
+from pvgraph.circuits.rig import build_rig, laminar_load  # noqa: E402
+from pvgraph.circuits.scenarios import Scenario, get_scenario  # noqa: E402
+from pvgraph.circuits.validation import run_scenario, validate  # noqa: E402
 from pvgraph.analysis import steady_state  # noqa: E402
 from pvgraph.analysis.sweep import sweep  # noqa: E402
 from pvgraph.units import to_bar, to_lpm  # noqa: E402
@@ -262,7 +262,7 @@ def _get(p, path):
 
 
 def bench_calibration(repeats: int, full_fit: bool) -> str:
-    from circuits.calibration import DEFAULT_FIT, RigSteadyModel, calibrate_rig, calibration_data
+    from pvgraph.circuits.calibration import DEFAULT_FIT, RigSteadyModel, calibrate_rig, calibration_data
     from pvgraph.analysis.calibrate import DIFF_STEP
 
     base = report_tuned()

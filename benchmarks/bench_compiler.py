@@ -23,7 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _machine import machine  # noqa: E402
-from components import FlowSource, LaminarOrifice, Orifice, Tank, VolumeNode  # noqa: E402
+from pvgraph.components import FlowSource, LaminarOrifice, Orifice, Tank, VolumeNode  # noqa: E402
 from pvgraph import Circuit  # noqa: E402
 from pvgraph.units import litre, lpm, lpm_per_bar, mm2  # noqa: E402
 

@@ -24,8 +24,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _machine import machine  # noqa: E402
 from bench_compiler import build  # noqa: E402
-from components.mechanical import ForceInput, LinearSpring, SpoolMass  # noqa: E402
-from components.signal import Constant  # noqa: E402
+from pvgraph.components.mechanical import ForceInput, LinearSpring, SpoolMass  # noqa: E402
+from pvgraph.components.signal import Constant  # noqa: E402
 from pvgraph import Circuit  # noqa: E402
 import pvgraph.index_reduction as ir  # noqa: E402
 

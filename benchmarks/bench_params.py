@@ -22,8 +22,8 @@ sys.path.insert(0, str(HERE.parent))
 
 
 def sweep_case_costs(cases: int = 5) -> dict:
-    from circuits.pvg32.parameters import report_tuned, with_values
-    from circuits.rig import build_rig, laminar_load
+    from pvgraph.circuits.pvg32.parameters import report_tuned, with_values
+    from pvgraph.circuits.rig import build_rig, laminar_load
     from pvgraph.analysis import steady_state
     from pvgraph.units import lpm
 
@@ -58,7 +58,7 @@ def sweep_case_costs(cases: int = 5) -> dict:
 
 
 def calibration() -> dict:
-    from circuits.calibration import calibrate_rig
+    from pvgraph.circuits.calibration import calibrate_rig
     t0 = time.perf_counter()
     result, _ = calibrate_rig()
     wall = time.perf_counter() - t0

@@ -20,9 +20,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _machine import machine  # noqa: E402
-from circuits.pvg32.parameters import report_tuned  # noqa: E402
-from circuits.rig import build_rig, laminar_load  # noqa: E402
-from circuits.validation import validate  # noqa: E402
+from pvgraph.circuits.pvg32.parameters import report_tuned  # noqa: E402
+from pvgraph.circuits.rig import build_rig, laminar_load  # noqa: E402
+from pvgraph.circuits.validation import validate  # noqa: E402
 from pvgraph.simulate import simulate  # noqa: E402
 
 

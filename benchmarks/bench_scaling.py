@@ -33,7 +33,7 @@ DEFAULT = ["wide:100", "wide:300", "wide:1000", "wide:3000", "wide:10000",
 
 
 def wide(m: int):
-    from components import FlowSource, Orifice, Tank, VolumeNode
+    from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
     from pvgraph import Circuit
     from pvgraph.units import litre, lpm, mm2
     c = Circuit(f"wide{m}")
@@ -47,7 +47,7 @@ def wide(m: int):
 
 
 def chain(n: int):
-    from components import FlowSource, Orifice, Tank, VolumeNode
+    from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
     from pvgraph import Circuit
     from pvgraph.units import litre, lpm, mm2
     c = Circuit(f"chain{n}")

@@ -37,7 +37,7 @@ RHO, CD = 870.0, 0.6
 
 
 def orifice_bench(Q=1e-4, A=2e-6):
-    from components import FlowSource, Orifice, Tank, VolumeNode
+    from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
     from pvgraph import Circuit
     c = Circuit("orifice_bench")
     pump = c.add("pump", FlowSource(Q=Q))
@@ -61,12 +61,12 @@ def _rebuilt_small(steady, t_end, **case):
 
 
 def _rig(p):
-    from circuits.rig import build_rig, laminar_load
+    from pvgraph.circuits.rig import build_rig, laminar_load
     return build_rig(p, load=laminar_load(p, l2_open=True), U_input=4.24)
 
 
 def _rig_from(**case):
-    from circuits.pvg32.parameters import report_tuned, with_values
+    from pvgraph.circuits.pvg32.parameters import report_tuned, with_values
     return _rig(with_values(report_tuned(), case))
 
 
@@ -126,7 +126,7 @@ def small(n_cases):
 
 
 def rig(n_cases):
-    from circuits.pvg32.parameters import report_tuned
+    from pvgraph.circuits.pvg32.parameters import report_tuned
     from pvgraph.analysis import CompiledRun
     base = report_tuned()
     cases = [{"rig.pump_flow": base.rig.pump_flow * (0.9 + 0.2 * k / max(n_cases - 1, 1)),
@@ -158,8 +158,8 @@ def rig(n_cases):
 
 
 def scenario(n_cases):
-    from circuits.cli import _rig_case, _scenario_case
-    from circuits.pvg32.parameters import report_tuned
+    from pvgraph.circuits.cli import _rig_case, _scenario_case
+    from pvgraph.circuits.pvg32.parameters import report_tuned
     base = report_tuned()
     kw = dict(scenario="sweep-4", preset="tuned", law="laminar", settle=2.0, after=2.0)
     cases = [{"rig.pump_flow": base.rig.pump_flow * (0.9 + 0.2 * k / max(n_cases - 1, 1))}

@@ -16,8 +16,8 @@ from _machine import machine  # noqa: E402
 
 CODE = r'''
 import statistics, time, json
-from components import Orifice
-from circuits.rig import build_rig
+from pvgraph.components import Orifice
+from pvgraph.circuits.rig import build_rig
 
 def med(f, n, rep=7):
     out = []

@@ -31,7 +31,7 @@ __all__ = ["register"]
 
 
 def _preset(name: str):
-    from circuits.pvg32.parameters import report_initial, report_tuned
+    from pvgraph.circuits.pvg32.parameters import report_initial, report_tuned
     presets = {"tuned": report_tuned, "initial": report_initial}
     if name not in presets:
         raise PvgraphError(f"unknown preset {name!r}; choose one of {sorted(presets)}")
@@ -41,8 +41,8 @@ def _preset(name: str):
 
 
 def cmd_validate(args) -> int:
-    from circuits import validation as V
-    from circuits.scenarios import scenario_names
+    from pvgraph.circuits import validation as V
+    from pvgraph.circuits.scenarios import scenario_names
 
     names = args.scenario or scenario_names()
     unknown = [n for n in names if n not in scenario_names()]
@@ -82,8 +82,8 @@ def cmd_validate(args) -> int:
 
 def _calibrate(args, start):
     """Fit ``args.fit`` to the lab's steady data; print and save the estimates; return them."""
-    from circuits import calibration as C
-    from circuits.pvg32.parameters import with_values
+    from pvgraph.circuits import calibration as C
+    from pvgraph.circuits.pvg32.parameters import with_values
 
     if args.law != "laminar":
         raise PvgraphError("--calibrate fits the laminar load constants; use --law laminar")
@@ -93,7 +93,7 @@ def _calibrate(args, start):
     if args.preset == "tuned":
         # start the fitted rig quantities from the report's untuned table 4.9, so the estimates
         # are compared with the hand-tuned table 4.14 from an independent start
-        from circuits.pvg32.parameters import report_initial
+        from pvgraph.circuits.pvg32.parameters import report_initial
         initial = report_initial()
         start = with_values(start, {k: v for k, v in (
             ("rig.supply_voltage", initial.rig.supply_voltage),
@@ -144,7 +144,7 @@ TABLE_OUTPUTS = ("Q_total", "Pf", "Pm", "Pb", "pump_margin", "main_spool_x")
 
 def _sweepable(params) -> dict:
     """``{name: (preset value or None, description)}`` of every parameter a sweep can vary."""
-    from circuits.pvg32.parameters import parameter_field, parameter_paths
+    from pvgraph.circuits.pvg32.parameters import parameter_field, parameter_paths
     out = {name: (None, desc) for name, desc in SCENARIO_PARAMS.items()}
     for path in parameter_paths(params):
         out[path] = parameter_field(params, path)
@@ -170,9 +170,9 @@ def _scenario_case(*, scenario: str, preset: str, law: str, settle: float, after
     """One sweep case: a lab scenario on the rig with some parameters changed (SI outputs)."""
     from pydantic import ValidationError
 
-    from circuits import validation as V
-    from circuits.pvg32.parameters import with_values
-    from circuits.scenarios import Scenario, get_scenario
+    from pvgraph.circuits import validation as V
+    from pvgraph.circuits.pvg32.parameters import with_values
+    from pvgraph.circuits.scenarios import Scenario, get_scenario
 
     params = dict(params)
     s = get_scenario(params.pop("scenario", scenario))
@@ -217,8 +217,8 @@ def _check_rig_case(preset: str, case: dict) -> None:
     """Raise ParameterError if a case's values are invalid (before any case runs)."""
     from pydantic import ValidationError
 
-    from circuits.pvg32.parameters import with_values
-    from circuits.scenarios import Scenario, get_scenario
+    from pvgraph.circuits.pvg32.parameters import with_values
+    from pvgraph.circuits.scenarios import Scenario, get_scenario
 
     params = dict(case)
     s = get_scenario(params.pop("scenario", "sweep-4"))
@@ -233,7 +233,7 @@ def _check_rig_case(preset: str, case: dict) -> None:
 
 def sweep_scenarios(args) -> int:
     """``pvgraph sweep`` without a circuit target: rig parameters over lab scenarios."""
-    from circuits.scenarios import scenario_names
+    from pvgraph.circuits.scenarios import scenario_names
 
     params = _preset(args.preset)
     valid = _sweepable(params)
@@ -312,8 +312,8 @@ DEFAULT_VOLTAGE = 4.29  # [V] the test-9 operating point of examples/linearize_p
 def linearize_rig(args) -> int:
     """``pvgraph linearize`` without a circuit target: the rig at a scenario or a voltage."""
     import numpy as np
-    from circuits.rig import build_rig, laminar_load, turbulent_load
-    from circuits.scenarios import get_scenario, scenario_names
+    from pvgraph.circuits.rig import build_rig, laminar_load, turbulent_load
+    from pvgraph.circuits.scenarios import get_scenario, scenario_names
     from pvgraph.analysis import linearize_circuit, steady_state
 
     p = _preset(args.preset)
@@ -418,14 +418,14 @@ RIG_VARIABLES = ("load.f.port.p", "load.m.port.p", "load.b.port.p", "load.L2.q",
 
 
 def _rig(preset: str = "tuned", law: str = "laminar"):
-    from circuits.rig import build_rig, laminar_load, turbulent_load
+    from pvgraph.circuits.rig import build_rig, laminar_load, turbulent_load
     p = _preset(preset)
     return build_rig(p, load=(laminar_load if law == "laminar" else turbulent_load)(p))
 
 
 def _module(name: str):
     def build(preset: str = "tuned"):
-        from circuits.pvg32 import modules
+        from pvgraph.circuits.pvg32 import modules
         return getattr(modules, f"build_{name}")(_preset(preset))
     build.__name__ = f"build_{name}"
     return build
@@ -434,7 +434,7 @@ def _module(name: str):
 def _scenario_rig(name: str, preset: str = "tuned", law: str = "laminar",
                   t_switch: float = 8.0):
     """The rig set up for one lab scenario (L2 switching at ``t_switch`` in step tests)."""
-    from circuits import validation as V
+    from pvgraph.circuits import validation as V
     s = V.get_scenario(name)
     step = s.solenoid_event in ("opening", "closing")
     return V._build(s, _preset(preset), law, t_switch if step else None)
@@ -480,8 +480,8 @@ def _configure_linearize(parser) -> None:
 
 def register(registry) -> None:
     """Register the PVG 32 circuits, scenarios, commands and plots with pvgraph."""
-    from circuits.plotting import plot_flow_vs_voltage, plot_step_traces
-    from circuits.scenarios import all_scenarios
+    from pvgraph.circuits.plotting import plot_flow_vs_voltage, plot_step_traces
+    from pvgraph.circuits.scenarios import all_scenarios
 
     group = "PVG 32 (circuits/)"
     registry.circuit("rig", _rig, description="the PVG 32 on its lab rig (laminar load, "

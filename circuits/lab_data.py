@@ -1,6 +1,6 @@
 """Loaders for the PVG 32 rig measurements (report appendix B.7, used in section 4.7).
 
-The CSV files live in the package ``circuits.data`` and are read with ``importlib.resources``
+The CSV files live in the package ``pvgraph.circuits.data`` and are read with ``importlib.resources``
 (provenance, column meanings and accuracies: ``circuits/data/README.md``). Each loader returns a
 list of frozen records in SI units (Pa, m^3/s, V) that also keep the values exactly as written in
 the file (``*_bar``, ``*_lpm`` fields), so a result can always be traced back to the report table.
@@ -35,7 +35,7 @@ __all__ = [
     "FLOW_ACCURACY",
 ]
 
-DATA_PACKAGE = "circuits.data"
+DATA_PACKAGE = "pvgraph.circuits.data"
 SOLENOID_STEPS_FILE = "rig_solenoid_steps.csv"
 VOLTAGE_SWEEP_FILE = "rig_voltage_sweep.csv"
 

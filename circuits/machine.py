@@ -27,13 +27,13 @@ from __future__ import annotations
 
 import math
 
-from circuits.pvg32.modules import build_pvb, build_pve
-from circuits.pvg32.parameters import PVG32Params, report_tuned
-from components.hydraulic import (CounterbalanceValve, Cylinder, GasAccumulator,
+from pvgraph.circuits.pvg32.modules import build_pvb, build_pve
+from pvgraph.circuits.pvg32.parameters import PVG32Params, report_tuned
+from pvgraph.components.hydraulic import (CounterbalanceValve, Cylinder, GasAccumulator,
                                   HydraulicMotor, LoadSensingPump, Orifice, PiLine, ReliefValve,
                                   ShuttleValve, Tank, VolumeNode)
-from components.mechanical import Inertia, Mass, RotationalDamper, SpeedSource
-from components.signal import TimeTable
+from pvgraph.components.mechanical import Inertia, Mass, RotationalDamper, SpeedSource
+from pvgraph.components.signal import TimeTable
 from pvgraph import Circuit
 from pvgraph.units import bar, cm3, litre, mm2
 

@@ -1,7 +1,7 @@
 """The PVG 32 validation figures: steady flow against voltage, pressure traces after the steps.
 
 Both take the :class:`~circuits.validation.ScenarioResult` list of
-:func:`circuits.validation.validate` and write a PNG (matplotlib, Agg backend).
+:func:`pvgraph.circuits.validation.validate` and write a PNG (matplotlib, Agg backend).
 """
 
 from __future__ import annotations

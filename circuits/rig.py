@@ -23,9 +23,9 @@ from __future__ import annotations
 
 from typing import Literal
 
-from components.hydraulic import LaminarOrifice, Orifice, Pump, Tank, VolumeNode
-from components.hydraulic.solenoid import TimedOnOffValve
-from components.signal.sources import Constant
+from pvgraph.components.hydraulic import LaminarOrifice, Orifice, Pump, Tank, VolumeNode
+from pvgraph.components.hydraulic.solenoid import TimedOnOffValve
+from pvgraph.components.signal.sources import Constant
 from pvgraph import Circuit
 from pvgraph.units import circle_area
 
@@ -89,8 +89,8 @@ def cylinder_load(p: PVG32Params | None = None, *, mass: float = 200.0, k: float
 
     Port ``B`` feeds the piston side, port ``A`` the rod side.
     """
-    from components.hydraulic.cylinder import Cylinder
-    from components.mechanical import EndStop, Friction, LinearSpring, SpoolMass
+    from pvgraph.components.hydraulic.cylinder import Cylinder
+    from pvgraph.components.mechanical import EndStop, Friction, LinearSpring, SpoolMass
 
     p = p or report_tuned()
     c = Circuit("cylinder_load")

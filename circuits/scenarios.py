@@ -22,7 +22,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from circuits.lab_data import load_solenoid_steps, load_voltage_sweep
+from pvgraph.circuits.lab_data import load_solenoid_steps, load_voltage_sweep
 from pvgraph.errors import PvgraphError
 from pvgraph.units import bar, lpm, lpm_per_bar
 

@@ -1,6 +1,6 @@
 """Validation of the PVG 32 model against the lab measurements (report 4.7, appendix B.7).
 
-Each of the 19 scenarios (:mod:`circuits.scenarios`) runs the full nonlinear valve on the rig:
+Each of the 19 scenarios (:mod:`pvgraph.circuits.scenarios`) runs the full nonlinear valve on the rig:
 the valve starts at rest and settles with L2 in its initial state; solenoid-step tests then
 switch L2 and run on. The steady values at the end are compared with the measured ones, and the
 pressure drop over L3 after the step is kept as a trace (the report's figures 4.41-4.48).

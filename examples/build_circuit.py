@@ -20,8 +20,8 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from components.hydraulic import CheckValve, Cylinder, Orifice, Pump, Tank, VolumeNode
-from components.mechanical import Damper, EndStop, LinearSpring, SpoolMass
+from pvgraph.components.hydraulic import CheckValve, Cylinder, Orifice, Pump, Tank, VolumeNode
+from pvgraph.components.mechanical import Damper, EndStop, LinearSpring, SpoolMass
 from pvgraph import Circuit
 from pvgraph.plotting import plot_solution
 from pvgraph.simulate import simulate

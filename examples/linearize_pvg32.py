@@ -14,8 +14,8 @@ import sys
 
 import numpy as np
 
-from circuits.pvg32.parameters import report_tuned
-from circuits.rig import build_rig
+from pvgraph.circuits.pvg32.parameters import report_tuned
+from pvgraph.circuits.rig import build_rig
 from pvgraph.analysis import linearize_circuit, steady_state
 from pvgraph.simulate import simulate
 

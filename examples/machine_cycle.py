@@ -18,7 +18,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from circuits.machine import CYCLE, SPEC, build_machine  # noqa: E402
+from pvgraph.circuits.machine import CYCLE, SPEC, build_machine  # noqa: E402
 from pvgraph.plotting import plot_solution  # noqa: E402
 from pvgraph.simulate import simulate  # noqa: E402
 from pvgraph.units import to_bar  # noqa: E402

@@ -3,7 +3,7 @@
 Models of the same loop (x_set -> PVE controller -> solenoid valves -> chambers V4/V5 -> main
 spool, LVDT feedback):
 
-1. **pvgraph automatic**: the nonlinear PVE + PVB modules of ``circuits.pvg32`` on a bench of
+1. **pvgraph automatic**: the nonlinear PVE + PVB modules of ``pvgraph.circuits.pvg32`` on a bench of
    ideal pressure sources, linearised by :func:`pvgraph.analysis.linearize_circuit` at a steady
    state. The loop is opened exactly in the linear model (the set point enters only through
    e = x_set - x_meas, :meth:`LinearModel.open_loop`), which gives margins and root loci.
@@ -43,10 +43,10 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import control  # noqa: E402
 import numpy as np  # noqa: E402
 
-from circuits.pvg32.modules import build_pvb, build_pve  # noqa: E402
-from circuits.pvg32.parameters import PVG32Params, report_tuned  # noqa: E402
-from components.hydraulic import Tank  # noqa: E402
-from components.signal import Constant  # noqa: E402
+from pvgraph.circuits.pvg32.modules import build_pvb, build_pve  # noqa: E402
+from pvgraph.circuits.pvg32.parameters import PVG32Params, report_tuned  # noqa: E402
+from pvgraph.components.hydraulic import Tank  # noqa: E402
+from pvgraph.components.signal import Constant  # noqa: E402
 from pvgraph import Circuit  # noqa: E402
 from pvgraph.analysis import linearize_circuit, steady_state  # noqa: E402
 from pvgraph.simulate import simulate  # noqa: E402

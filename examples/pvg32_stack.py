@@ -16,12 +16,12 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from circuits.pvg32.modules import build_pve, build_pvb, build_pvp  # noqa: E402
-from circuits.pvg32.parameters import report_tuned  # noqa: E402
-from circuits.rig import laminar_load  # noqa: E402
-from components.hydraulic import CheckValve, LaminarOrifice, Orifice, Pump, Tank  # noqa: E402
-from components.hydraulic import VolumeNode  # noqa: E402
-from components.signal import Constant  # noqa: E402
+from pvgraph.circuits.pvg32.modules import build_pve, build_pvb, build_pvp  # noqa: E402
+from pvgraph.circuits.pvg32.parameters import report_tuned  # noqa: E402
+from pvgraph.circuits.rig import laminar_load  # noqa: E402
+from pvgraph.components.hydraulic import CheckValve, LaminarOrifice, Orifice, Pump, Tank  # noqa: E402
+from pvgraph.components.hydraulic import VolumeNode  # noqa: E402
+from pvgraph.components.signal import Constant  # noqa: E402
 from pvgraph import Circuit  # noqa: E402
 from pvgraph.plotting import plot_solution  # noqa: E402
 from pvgraph.simulate import simulate  # noqa: E402

@@ -33,9 +33,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from circuits.pvg32.parameters import report_tuned  # noqa: E402
-from circuits.rig import build_rig  # noqa: E402
-from components import PressureSource, Tank  # noqa: E402
+from pvgraph.circuits.pvg32.parameters import report_tuned  # noqa: E402
+from pvgraph.circuits.rig import build_rig  # noqa: E402
+from pvgraph.components import PressureSource, Tank  # noqa: E402
 from pvgraph import Circuit  # noqa: E402
 from pvgraph.analysis import hydraulic_power, steady_state  # noqa: E402
 from pvgraph.units import bar, to_bar, to_lpm  # noqa: E402

@@ -29,9 +29,9 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import numpy as np  # noqa: E402
 
-from components.mechanical import (PositionInput, SpoolMass, TwoFlangeDamper,  # noqa: E402
+from pvgraph.components.mechanical import (PositionInput, SpoolMass, TwoFlangeDamper,  # noqa: E402
                                    TwoFlangeSpring)
-from components.signal import Sine  # noqa: E402
+from pvgraph.components.signal import Sine  # noqa: E402
 from pvgraph import Circuit  # noqa: E402
 from pvgraph.simulate import simulate  # noqa: E402
 

@@ -2,7 +2,7 @@
 
 ``build_rig(load=...)`` takes any circuit exposing hydraulic ports ``A`` and ``B``; the valve is
 not touched. With 4.24 V in (below half the 11.5 V supply) the main spool feeds port B, which
-is the piston side of the cylinder (``circuits.rig.cylinder_load``, 40/22 mm, lifting 200 kg
+is the piston side of the cylinder (``pvgraph.circuits.rig.cylinder_load``, 40/22 mm, lifting 200 kg
 against a spring), so the cylinder extends.
 
 Run: ``python examples/swap_load.py`` (writes swap_load.png).
@@ -21,8 +21,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from circuits.pvg32.parameters import report_tuned  # noqa: E402
-from circuits.rig import build_rig, cylinder_load, laminar_load  # noqa: E402
+from pvgraph.circuits.pvg32.parameters import report_tuned  # noqa: E402
+from pvgraph.circuits.rig import build_rig, cylinder_load, laminar_load  # noqa: E402
 from pvgraph.simulate import simulate  # noqa: E402
 from pvgraph.units import to_bar, to_lpm  # noqa: E402
 

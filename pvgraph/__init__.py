@@ -1,6 +1,6 @@
 """pvgraph: acausal component-graph modelling of hydraulic circuits.
 
-Build a circuit from components, compile it to a DAE system, simulate it with an IDA-style
+Build a circuit from pvgraph.components, compile it to a DAE system, simulate it with an IDA-style
 implicit solver, and address results by dotted name.
 """
 

@@ -264,7 +264,7 @@ def plot_opening_areas(tables, path, *, title="Opening areas"):
     """Opening area [mm^2] against spool position [mm], one line per table.
 
     ``tables`` holds objects with ``name``, ``x`` [m] and ``area`` [m^2] (e.g.
-    :class:`circuits.pvg32.tables.AreaTable`); the lines carry the tables' names.
+    :class:`pvgraph.circuits.pvg32.tables.AreaTable`); the lines carry the tables' names.
     """
     fig, ax = plt.subplots(figsize=(7, 4))
     for tab in tables:

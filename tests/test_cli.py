@@ -203,7 +203,7 @@ import time
 
 from pydantic import Field
 
-from components import FlowSource, Orifice, Tank, VolumeNode
+from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
 from pvgraph import Circuit, Component, Hydraulic, Params
 
 

@@ -5,10 +5,10 @@ import warnings
 
 import pytest
 
-from components import FlowSource, Orifice, Tank, VolumeNode
-from components.hydraulic import Plug, Pump
-from components.hydraulic.variable_orifice import VariableOrifice
-from components.mechanical import Fixed, ForceInput, SpoolMass
+from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
+from pvgraph.components.hydraulic import Plug, Pump
+from pvgraph.components.hydraulic.variable_orifice import VariableOrifice
+from pvgraph.components.mechanical import Fixed, ForceInput, SpoolMass
 from pvgraph import Circuit
 from pvgraph.errors import (CircuitError, ConnectionError_, ParameterError, PlausibilityWarning,
                             PvgraphError,
@@ -117,7 +117,7 @@ def test_negative_area():
 
 def test_missing_and_unknown_parameters_are_named_with_what_is_accepted():
     """A missing parameter is named as required; an unknown keyword lists the accepted ones."""
-    from components.hydraulic import Cylinder
+    from pvgraph.components.hydraulic import Cylinder
     with pytest.raises(ParameterError) as exc:
         Cylinder(D_piston=0.04, stroke=0.3)
     msg = str(exc.value)

@@ -26,15 +26,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from components.hydraulic import Orifice, Tank, VolumeNode
-from components.hydraulic.check_valve import CheckValve
-from components.hydraulic.solenoid import PWMValve
-from components.hydraulic.variable_orifice import VariableOrifice
-from components.hydraulic.volumes import PistonChamber
-from components.mechanical import EndStop, Friction, LinearSpring, SpoolMass
-from components.mechanical.springs import CenteringSpring, TwoStageSpring
-from components.signal import LVDT, PVEController
-from components.signal.sources import Constant
+from pvgraph.components.hydraulic import Orifice, Tank, VolumeNode
+from pvgraph.components.hydraulic.check_valve import CheckValve
+from pvgraph.components.hydraulic.solenoid import PWMValve
+from pvgraph.components.hydraulic.variable_orifice import VariableOrifice
+from pvgraph.components.hydraulic.volumes import PistonChamber
+from pvgraph.components.mechanical import EndStop, Friction, LinearSpring, SpoolMass
+from pvgraph.components.mechanical.springs import CenteringSpring, TwoStageSpring
+from pvgraph.components.signal import LVDT, PVEController
+from pvgraph.components.signal.sources import Constant
 from pvgraph import Circuit
 
 from . import tables

@@ -4,7 +4,7 @@ Every value comes from the 2009 PVG 32 modelling report (not shipped with pvgrap
 carries the section, equation or table in its field description. Everything is SI (Pa, m, m^2,
 m^3, m^3/s, kg, N, N/m, N s/m, s, rad); report units are converted here, at the edge, with
 the helpers of :mod:`pvgraph.units`. Opening-area tables and the solenoid-valve flow maps are in
-:mod:`circuits.pvg32.tables`; the model they feed is summarised in ``docs/pvg32_model.md``.
+:mod:`pvgraph.circuits.pvg32.tables`; the model they feed is summarised in ``docs/pvg32_model.md``.
 
 Presets
 -------
@@ -325,7 +325,7 @@ class SolenoidValveParams(_Params):
     """One PVE on/off solenoid valve, driven by a duty cycle (4.5.4, 4.5.5).
 
     The duty-cycle-averaged flow is Q = map(DT, |dp|) sign(dp) with the NC or NO map of
-    :mod:`circuits.pvg32.tables` (figure 4.22). The report delays the duty-cycle signal by the
+    :mod:`pvgraph.circuits.pvg32.tables` (figure 4.22). The report delays the duty-cycle signal by the
     switching delay ("time delay implemented in the control", 4.5.5).
     """
 

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from circuits.pvg32.parameters import PVG32Params
+from pvgraph.circuits.pvg32.parameters import PVG32Params
 from pvgraph.units import BAR, bar, mm, mm2
 
 __all__ = [

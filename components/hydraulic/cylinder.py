@@ -18,7 +18,7 @@ in +x, so the rod pushes its load with ``F = A_A p_A - A_B p_B`` in +x (observed
 
 End stops: ``pen_hi``/``pen_lo`` are the penetrations past ``x = stroke`` and before ``x = 0``
 with a quadratic onset over ``eps_stop`` (exactly zero in free travel,
-:func:`components.mechanical.laws.onset_penetration`), ``c_hi``/``c_lo`` = clip(depth/eps, 0, 1)
+:func:`pvgraph.components.mechanical.laws.onset_penetration`), ``c_hi``/``c_lo`` = clip(depth/eps, 0, 1)
 their contact indicators, so the stops push the rod back with a stiff spring ``k_stop`` and a
 damper ``d_stop`` acting only in contact. At rest against a stop under a force ``F`` the rod is
 ``F / k_stop + eps_stop / 2`` past it.

@@ -3,7 +3,7 @@
 The spool position is a signal ``u`` [-], the fraction of the stroke: for the 4/3 valve ``u = +1``
 connects P -> A and B -> T, ``u = -1`` P -> B and A -> T, ``u = 0`` is the centre. Drive it from
 any signal source, or from a mechanical position through a
-:class:`components.mechanical.PositionSensor` with the gain ``1 / x_max``.
+:class:`pvgraph.components.mechanical.PositionSensor` with the gain ``1 / x_max``.
 
 Each metering edge is a turbulent orifice (report eq. A.4) whose area follows its opening
 coordinate ``s`` (``s = u`` for P-A and B-T, ``s = -u`` for P-B and A-T). An edge with lap
@@ -13,7 +13,7 @@ coordinate ``s`` (``s = u`` for P-A and B-T, ``s = -u`` for P-B and A-T). An edg
     A(s) = A_max * (onset(s - lap + eps/2) - onset(s - 1 + eps/2)) / (1 - lap) + A_leak
 
 ``onset`` is the quadratic-onset max(., 0) of width ``eps = 1e-3``
-(:func:`components.mechanical.laws.onset_penetration`), so ``A = A_max (s - lap) / (1 - lap)``
+(:func:`pvgraph.components.mechanical.laws.onset_penetration`), so ``A = A_max (s - lap) / (1 - lap)``
 exactly in the metering range ``lap + eps/2 <= s <= 1 - eps/2``, exactly ``A_max`` past
 ``s = 1 + eps/2``, rounded in between. With
 ``edge="table"`` the area is ``A_max * table(s - lap)``, linear interpolation through

@@ -2,7 +2,7 @@
 
 ``ShuttleValve``: ports ``a``, ``b`` (inlets) and ``out``. A ball shuttles to the lower inlet and
 seals it, so ``out`` connects to the higher one. With ``s = ramp(a.p - b.p; -dp_switch/2,
-dp_switch)`` (C1 smoothstep from 0 to 1, :func:`components.hydraulic.check_valve.smoothstep_ramp`)::
+dp_switch)`` (C1 smoothstep from 0 to 1, :func:`pvgraph.components.hydraulic.check_valve.smoothstep_ramp`)::
 
     A_a = A_leak + A * s,   A_b = A_leak + A * (1 - s)
     a.q = orifice(A_a, a.p - out.p),  b.q = orifice(A_b, b.p - out.p),  out.q = -(a.q + b.q)

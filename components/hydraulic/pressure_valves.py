@@ -14,7 +14,7 @@ force balance, then is limited to ``[0, x_max]``; the area gradient ``w`` is the
     x  = onset(x*) - onset(x* - x_max),   A = A_leak + w * x
 
 ``onset`` is the quadratic-onset max(., 0) of width ``eps = 1e-3 x_max``
-(:func:`components.mechanical.laws.onset_penetration`): ``x = x* - eps/2`` inside the stroke,
+(:func:`pvgraph.components.mechanical.laws.onset_penetration`): ``x = x* - eps/2`` inside the stroke,
 exactly 0 when closed. Without flow force the valve opens fully at
 ``p_full = p_crack + k x_max / A_s``.
 
@@ -34,7 +34,7 @@ open at ``dp_main + dp_main_open``. With ``p_c = P.p - dp_o`` the pilot chamber 
     P.q = q_o + q_m
 
 ``ramp(u; u0, du)`` is the C1 smoothstep from 0 at ``u0`` to 1 at ``u0 + du``
-(:func:`components.hydraulic.check_valve.smoothstep_ramp`). The pressure override of a pilot
+(:func:`pvgraph.components.hydraulic.check_valve.smoothstep_ramp`). The pressure override of a pilot
 relief at full flow is a few bar, against tens of bar for a direct valve of the same size.
 
 ``PressureReducingValve`` (2-way, normally open): the area from P to A closes as the outlet

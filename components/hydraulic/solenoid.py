@@ -50,7 +50,7 @@ figure's largest curve, below its 3e-5 axis limit); the NO map gives 3.4e-5 m^3/
 0 %, below the figure's 4.5-5e-5 range: a separable map cannot match figure 4.22's NO plateau
 and figure 4.55's NO lines at once, and the lines (which the report's linear model uses) are
 kept. Pass ``DT_table``/``Q_table``/``dp_ref`` to use another map (e.g. from
-``circuits.pvg32.tables``).
+``pvgraph.circuits.pvg32.tables``).
 """
 
 from __future__ import annotations

@@ -24,7 +24,7 @@ air fraction ``air`` > 0, the pressure-dependent effective modulus of oil with f
 normalised at atmospheric pressure, with ``p_abs = p + p_atm`` (gauge ``p``), smoothly limited
 from below at ``p_min_abs``.
 
-Cavitation (:mod:`components.hydraulic.fluid`): the compliance ``V / beta`` gains a term that
+Cavitation (:mod:`pvgraph.components.hydraulic.fluid`): the compliance ``V / beta`` gains a term that
 grows without bound as the absolute pressure nears the vapour pressure ``p_vap``, so a chamber
 never falls below it; each chamber warns once (``CavitationWarning``, naming it) when it gets
 there.
@@ -78,7 +78,7 @@ def chamber_continuity(V, p, q, A_signed, x, fp: FluidCompliance):
 
         V / beta(p) * der(p) = q - A_signed * der(x)
 
-    with ``1/beta`` including the cavitation term (:func:`components.hydraulic.fluid.compliance`).
+    with ``1/beta`` including the cavitation term (:func:`pvgraph.components.hydraulic.fluid.compliance`).
     """
     return V * compliance(p, fp) * der(p) - (q - A_signed * der(x))
 

@@ -9,7 +9,7 @@ With ``x = flange.x``, ``v = der(flange.x)`` and the penetrations past each limi
 damping acts only while a stop is touched (a Kelvin-Voigt contact, as in
 ``Modelica.Mechanics.Translational.Components.ElastoGap``). The stop pushes the node with
 ``-flange.f``: back into the stroke. Max is rounded as :func:`pvgraph.laws.smooth_pos` within
-``eps`` (evaluated without cancellation, :mod:`components.mechanical.laws`), so the force and its
+``eps`` (evaluated without cancellation, :mod:`pvgraph.components.mechanical.laws`), so the force and its
 derivative are continuous; in free travel a residual force of
 about ``k*eps^2 / (4*distance to the stop)`` remains (2.5e-4 N at 1 mm with the defaults).
 At rest against a stop under a force ``F`` the penetration is ``F/k``; a mass ``m`` hitting it at

@@ -18,7 +18,7 @@ with the rest of the report: with it V_rel = 0.25, 0.5, 0.75 give x_set = -7, 0,
 spool's full stroke and neutral position (section 4.5.5 text and figure 4.25); with 0.0028 the
 neutral input V_rel = 0.5 would command -12.6 mm, outside the stroke.
 
-``x_meas`` is the LVDT reading (:class:`components.signal.LVDT`), which under-reads by its gain
+``x_meas`` is the LVDT reading (:class:`pvgraph.components.signal.LVDT`), which under-reads by its gain
 0.945; the loop therefore settles where 0.945 * x_m = x_set, as in the report's model. The
 duty-cycle limits are kinked (``eps = 0``, exactly eq. 4.115) or rounded within ``eps`` %.
 The 3 ms / 20 ms solenoid switching delays of the section belong to the valve models.

@@ -7,9 +7,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from circuits.calibration import (DEFAULT_FIT, TABLE_4_14, Datum, RigSteadyModel,
+from pvgraph.circuits.calibration import (DEFAULT_FIT, TABLE_4_14, Datum, RigSteadyModel,
                                   calibrate_rig, calibration_data, fit_parameter)
-from circuits.pvg32.parameters import report_tuned, with_values
+from pvgraph.circuits.pvg32.parameters import report_tuned, with_values
 from pvgraph.analysis import calibrate
 from pvgraph.errors import ParameterError
 from pvgraph.units import lpm
@@ -82,7 +82,7 @@ def test_lab_calibration_agrees_with_table_4_14():
     """The fit from table 4.9's start values lands where the report's hand tuning did: supply
     11.5 V and pump 16.3 L/min inside the 95 % intervals, load constants within 10 % of table 4.8,
     and the flows then match the lab within 1 L/min everywhere."""
-    from circuits import validation as V
+    from pvgraph.circuits import validation as V
     fit, fitted = calibrate_rig(DEFAULT_FIT, workers=2)
     for name in ("rig.supply_voltage", "rig.pump_flow"):
         lo, hi = fit.interval(name)

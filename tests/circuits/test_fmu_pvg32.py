@@ -4,7 +4,7 @@ pvgraph's own simulation does."""
 import numpy as np
 import pytest
 
-from circuits.rig import build_rig
+from pvgraph.circuits.rig import build_rig
 from pvgraph.simulate import simulate
 
 fmpy = pytest.importorskip("fmpy")

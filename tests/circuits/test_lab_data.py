@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from circuits.lab_data import (
+from pvgraph.circuits.lab_data import (
     FLOW_ACCURACY,
     PRESSURE_ACCURACY,
     LabDataError,
@@ -15,7 +15,7 @@ from circuits.lab_data import (
     load_solenoid_steps,
     load_voltage_sweep,
 )
-from circuits.scenarios import UnknownScenarioError, all_scenarios, get_scenario, scenario_names
+from pvgraph.circuits.scenarios import UnknownScenarioError, all_scenarios, get_scenario, scenario_names
 from pvgraph.errors import PvgraphError
 from pvgraph.units import bar, lpm, lpm_per_bar, to_bar, to_lpm, to_mm2
 
@@ -125,7 +125,7 @@ def test_malformed_sweep_file(tmp_path):
 
 def test_user_file_same_as_packaged(tmp_path):
     from importlib import resources
-    text = resources.files("circuits.data").joinpath("rig_voltage_sweep.csv").read_text()
+    text = resources.files("pvgraph.circuits.data").joinpath("rig_voltage_sweep.csv").read_text()
     path = tmp_path / "copy.csv"
     path.write_text(text)
     assert load_voltage_sweep(path) == load_voltage_sweep()

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from circuits.machine import CYCLE, SPEC, build_machine
+from pvgraph.circuits.machine import CYCLE, SPEC, build_machine
 from pvgraph.simulate import simulate
 from pvgraph.units import bar, mm2
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from circuits.cli import register
+from pvgraph.circuits.cli import register
 from pvgraph.modelfile import dumps, loads, to_dict
 from pvgraph.registry import Registry
 

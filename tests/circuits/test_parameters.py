@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from circuits.pvg32.parameters import (
+from pvgraph.circuits.pvg32.parameters import (
     CompensatorParams,
     FluidParams,
     MainSpoolParams,
@@ -21,7 +21,7 @@ from circuits.pvg32.parameters import (
     report_initial,
     report_tuned,
 )
-from circuits.pvg32 import tables
+from pvgraph.circuits.pvg32 import tables
 from pvgraph.units import bar, cm3, lpm, lpm_per_bar, mm, mm2, to_bar, to_mm2
 
 PARAM_MODELS = [FluidParams, PVPParams, CompensatorParams, MainSpoolParams, PVEParams, RigParams,

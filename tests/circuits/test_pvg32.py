@@ -4,12 +4,12 @@ rig reproduces the lab measurements (report sections 4.2-4.7, appendix B.7)."""
 import numpy as np
 import pytest
 
-from circuits.pvg32.modules import build_pvb, build_pvg32, build_pvp
-from circuits.pvg32.parameters import report_tuned
-from circuits.rig import build_rig, laminar_load, turbulent_load
-from circuits.validation import run_scenario, targets, validate
-from components.hydraulic import FlowSource, LaminarOrifice, Plug, PressureSource, Tank
-from components.mechanical import Fixed
+from pvgraph.circuits.pvg32.modules import build_pvb, build_pvg32, build_pvp
+from pvgraph.circuits.pvg32.parameters import report_tuned
+from pvgraph.circuits.rig import build_rig, laminar_load, turbulent_load
+from pvgraph.circuits.validation import run_scenario, targets, validate
+from pvgraph.components.hydraulic import FlowSource, LaminarOrifice, Plug, PressureSource, Tank
+from pvgraph.components.mechanical import Fixed
 from pvgraph import Circuit
 from pvgraph.simulate import simulate
 from pvgraph.units import bar, lpm, lpm_per_bar, mm, to_bar, to_lpm
@@ -117,6 +117,6 @@ def test_all_19_scenarios_meet_the_flow_and_margin_targets():
 
 
 def test_a_run_too_short_to_judge_is_not_called_settled():
-    from circuits.validation import run_scenario
+    from pvgraph.circuits.validation import run_scenario
     r = run_scenario("test-2", settle=0.3, after=0.2)
     assert r.settled is False and r.settle_deviation != r.settle_deviation   # NaN

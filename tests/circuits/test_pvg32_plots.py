@@ -3,8 +3,8 @@
 import matplotlib.image as mpimg
 import numpy as np
 
-from circuits.pvg32.modules import build_pvb, opening_areas
-from circuits.pvg32.parameters import report_tuned
+from pvgraph.circuits.pvg32.modules import build_pvb, opening_areas
+from pvgraph.circuits.pvg32.parameters import report_tuned
 from pvgraph.plotting import plot_opening_areas
 
 

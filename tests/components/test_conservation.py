@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from components.hydraulic import (CheckValve, CounterbalanceValve, DirectionalValve43,
+from pvgraph.components.hydraulic import (CheckValve, CounterbalanceValve, DirectionalValve43,
                                   FlowControlValve, FlowSource, GasAccumulator, HydraulicMotor,
                                   Orifice, PiLine, PilotReliefValve, PressureReducingValve,
                                   ReliefValve, SequenceValve, ShuttleValve, VolumeNode)
-from components.mechanical import Inertia, RotationalDamper
-from components.signal import Constant
+from pvgraph.components.mechanical import Inertia, RotationalDamper
+from pvgraph.components.signal import Constant
 from pvgraph.circuit import Circuit
 from pvgraph.simulate import simulate
 from pvgraph.units import bar, cm3, lpm, mm2

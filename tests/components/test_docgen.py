@@ -4,7 +4,7 @@ from pathlib import Path
 
 from pvgraph.docgen import DEFAULT_OUTPUT, component_reference, library_modules
 
-DOC = Path(__file__).resolve().parents[2] / "docs" / "components.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "pvgraph.components.md"
 
 
 def test_docs_components_md_is_up_to_date():
@@ -27,12 +27,12 @@ def test_reference_lists_components_ports_and_parameters():
 
 
 def test_reference_of_a_single_module():
-    import components.signal.lvdt as lvdt
+    import pvgraph.components.signal.lvdt as lvdt
     text = component_reference([lvdt])
     assert "### LVDT" in text and "### Orifice" not in text
     assert "| `tau` | Time constant [s] (report eq. 4.113) | 0.0059 | > 0, <= 10 |" in text
 
 
 def test_package_not_written_yet_is_skipped():
-    modules = library_modules(["components.mechanical", "components.no_such_package"])
-    assert [m.__name__ for m in modules] == ["components.mechanical"]
+    modules = library_modules(["pvgraph.components.mechanical", "pvgraph.components.no_such_package"])
+    assert [m.__name__ for m in modules] == ["pvgraph.components.mechanical"]

@@ -12,13 +12,13 @@ import pytest
 from pydantic import Field
 from scipy.optimize import brentq
 
-from circuits.pvg32.modules import FRICTION_V_EPS, STOP_ROUNDING
-from circuits.pvg32.parameters import report_tuned
-from components.hydraulic import Cylinder, FlowSource, Pump, Tank, VolumeNode
-from components.hydraulic.volumes import P_ATM
-from components.mechanical import (CenteringSpring, Damper, EndStop, ForceInput, Friction,
+from pvgraph.circuits.pvg32.modules import FRICTION_V_EPS, STOP_ROUNDING
+from pvgraph.circuits.pvg32.parameters import report_tuned
+from pvgraph.components.hydraulic import Cylinder, FlowSource, Pump, Tank, VolumeNode
+from pvgraph.components.hydraulic.volumes import P_ATM
+from pvgraph.components.mechanical import (CenteringSpring, Damper, EndStop, ForceInput, Friction,
                                    SpoolMass)
-from components.signal import Constant, Step
+from pvgraph.components.signal import Constant, Step
 from pvgraph import Circuit, Component, Hydraulic, Params, Variable, der
 from pvgraph.simulate import simulate
 
@@ -129,7 +129,7 @@ def main_spool_bench(split: bool):
 
     The force step is the 13.5 bar pilot pressure on the spool end area A_m (report eq. 4.86,
     4.92); spring (eq. 4.88), viscous friction c_vm = 25 N s/m (table 4.14) and the +-7 mm stops
-    (4.4.2) are those of the PVG 32 model (``circuits.pvg32.modules.build_pvb``).
+    (4.4.2) are those of the PVG 32 model (``pvgraph.circuits.pvg32.modules.build_pvb``).
     """
     m = report_tuned().main_spool
     c = Circuit("main_spool")
@@ -188,8 +188,8 @@ def _spool_and_lever(m, m_lever=0.0, **kwargs):
 def test_pvg32_rig_with_spool_and_lever_joined_matches_the_merged_model(monkeypatch):
     """Report 4.9 / figure 4.62: the closed-loop step to 3.5 mm of the full rig, once with the
     merged ``SpoolMass(m, m_lever)`` of ``build_pvb`` and once with the lever as its own body."""
-    import circuits.pvg32.modules as modules
-    from circuits.rig import build_rig
+    import pvgraph.circuits.pvg32.modules as modules
+    from pvgraph.circuits.rig import build_rig
     from pvgraph.units import mm
 
     p = report_tuned()

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from components import FlowSource, LaminarOrifice, Orifice, Plug, Tank, VolumeNode
+from pvgraph.components import FlowSource, LaminarOrifice, Orifice, Plug, Tank, VolumeNode
 from pvgraph import Circuit, Component, Hydraulic, Mechanical, SignalIn, SignalOut, Variable
 from pvgraph.errors import (CircuitError, ConnectionError_, ParameterError, PvgraphError,
                             StructureError)

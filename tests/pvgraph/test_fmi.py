@@ -4,7 +4,7 @@ pvgraph's own simulation gives, inputs changed between communication steps inclu
 import numpy as np
 import pytest
 
-from components import FlowSource, Orifice, Tank, VolumeNode
+from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
 from pvgraph import Circuit, ParameterError, PvgraphError
 from pvgraph.simulate import simulate
 

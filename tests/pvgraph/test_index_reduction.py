@@ -9,9 +9,9 @@ import pytest
 from pydantic import Field
 from scipy.special import ellipk
 
-from components.hydraulic import FlowSource, Tank, VolumeNode
-from components.mechanical import ForceInput, PositionInput, SpoolMass
-from components.signal import Constant, Sine, TimeTable
+from pvgraph.components.hydraulic import FlowSource, Tank, VolumeNode
+from pvgraph.components.mechanical import ForceInput, PositionInput, SpoolMass
+from pvgraph.components.signal import Constant, Sine, TimeTable
 from pvgraph import (Circuit, Component, Hydraulic, InitializationError, Params,
                      SolverError, StructureError, Variable, der)
 from pvgraph import expr as E
@@ -111,7 +111,7 @@ def test_connection_equations_kept_are_differentiated_too():
 
 
 def test_joined_masses_on_a_spring_linearise_to_one_mass_of_the_sum():
-    from components.mechanical import LinearSpring
+    from pvgraph.components.mechanical import LinearSpring
     from pvgraph.analysis import linearize, steady_state
     k, F = 4e3, 20.0
     c = masses_under_force([1.0, 3.0], F)

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from components import FlowSource, Orifice, Tank, VolumeNode
+from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
 from pvgraph import Circuit
 from pvgraph.modelfile import ModelFileError, dumps, load, loads, save, schema, to_dict
 from pvgraph.simulate import simulate

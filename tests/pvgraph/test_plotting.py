@@ -6,7 +6,7 @@ import pytest
 
 from pvgraph.plotting import draw_circuit, plot_bode, plot_solution, plot_step_response
 from pvgraph.simulate import simulate
-from components import FlowSource, Orifice, Tank, VolumeNode
+from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
 from pvgraph import Circuit
 from pvgraph.units import litre, lpm, mm2
 
@@ -58,7 +58,7 @@ def test_bode_step_and_circuit_drawings(tmp_path):
 
 
 def test_schematic_groups_sub_circuits_and_styles_domains(tmp_path):
-    from components.mechanical import Fixed, SpoolMass
+    from pvgraph.components.mechanical import Fixed, SpoolMass
     from pvgraph.plotting import _schematic
 
     outer = Circuit("outer")

@@ -3,7 +3,7 @@
 import numpy as np
 from hypothesis import HealthCheck, example, given, settings, strategies as st
 
-from components import FlowSource, LaminarOrifice, Orifice, Pump, Tank, VolumeNode
+from pvgraph.components import FlowSource, LaminarOrifice, Orifice, Pump, Tank, VolumeNode
 from pvgraph import Circuit
 from pvgraph.units import litre, lpm, lpm_per_bar, mm2
 

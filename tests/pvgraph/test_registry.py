@@ -11,7 +11,7 @@ from pvgraph.registry import ENV_VAR, Registry, RegistryError
 
 
 def _build():
-    from components import Tank
+    from pvgraph.components import Tank
     from pvgraph import Circuit
     c = Circuit("t")
     c.add("tank", Tank())
@@ -36,7 +36,7 @@ def test_registering_and_clashes():
 PLUGIN = '''
 def register(registry):
     from pvgraph import Circuit
-    from components import FlowSource, Orifice, Tank
+    from pvgraph.components import FlowSource, Orifice, Tank
 
     def press(Q=1e-4):
         c = Circuit("press")

@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 import pytest
 
-from components import FlowSource, LaminarOrifice, Orifice, PressureSource, Tank, VolumeNode
+from pvgraph.components import FlowSource, LaminarOrifice, Orifice, PressureSource, Tank, VolumeNode
 from pvgraph import Circuit
 from pvgraph.analysis import calibrate, steady_state
 from pvgraph.errors import ParameterError

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from components import FlowSource, LaminarOrifice, Orifice, Tank, VolumeNode
+from pvgraph.components import FlowSource, LaminarOrifice, Orifice, Tank, VolumeNode
 from pvgraph import Circuit, Component, Hydraulic, Params
 from pvgraph.errors import PvgraphError
 from pvgraph.simulate import simulate
@@ -150,8 +150,8 @@ def test_fully_algebraic_circuit_still_reports():
 def test_all_rig_scenarios_agree_on_both_backends():
     """The 19 PVG 32 rig scenarios run on SUNDIALS IDA as on pvgraph's solver, same answers."""
     pytest.importorskip("sksundae")
-    from circuits.scenarios import all_scenarios
-    from circuits.validation import run_scenario
+    from pvgraph.circuits.scenarios import all_scenarios
+    from pvgraph.circuits.validation import run_scenario
 
     for scenario in all_scenarios():
         ours = run_scenario(scenario, solver="pvgraph")
@@ -183,7 +183,7 @@ def test_cli_simulates_test_2_on_sundials_ida(capsys):
 def test_step_sampled_at_its_time_has_the_new_value(solver):
     if solver == "ida":
         pytest.importorskip("sksundae")
-    from components.signal import FirstOrderLag, Step
+    from pvgraph.components.signal import FirstOrderLag, Step
 
     c = Circuit("step")
     src = c.add("src", Step(height=2.0, offset=-1.0, t_step=0.1))

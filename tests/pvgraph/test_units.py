@@ -4,8 +4,8 @@ import math
 
 import pytest
 
-from components import FlowSource, Orifice, Tank, VolumeNode
-from components.signal.sources import TimeTable
+from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
+from pvgraph.components.signal.sources import TimeTable
 from pvgraph import Circuit, ParameterError
 from pvgraph.simulate import simulate
 from pvgraph.units import (BAR, LPM, UnitError, declared_unit, display, format_value, lpm,

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from components.hydraulic import (FlowSource, GasAccumulator, PiLine, Plug, PressureSource, Tank,
+from pvgraph.components.hydraulic import (FlowSource, GasAccumulator, PiLine, Plug, PressureSource, Tank,
                                   VolumeNode)
-from components.hydraulic.lines import line_friction, segmented_line
+from pvgraph.components.hydraulic.lines import line_friction, segmented_line
 from hydraulic_helpers import jacobian_fd_error, requires_solver
 from pvgraph.circuit import Circuit
 from pvgraph.errors import ParameterError

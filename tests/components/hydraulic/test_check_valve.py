@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from components.hydraulic import CheckValve, FlowSource, Tank, VolumeNode
+from pvgraph.components.hydraulic import CheckValve, FlowSource, Tank, VolumeNode
 from hydraulic_helpers import fixed_observed, jacobian_fd_error, requires_solver, value, vector
 from pvgraph.circuit import Circuit
 from pvgraph.errors import ParameterError

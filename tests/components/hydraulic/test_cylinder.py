@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from components.hydraulic import Cylinder, FlowSource, Plug, PressureSource, Tank
+from pvgraph.components.hydraulic import Cylinder, FlowSource, Plug, PressureSource, Tank
 from hydraulic_helpers import (MassDamper, VelocityDrive, jacobian_fd_error, requires_solver,
                                value, vector)
 from pvgraph.circuit import Circuit

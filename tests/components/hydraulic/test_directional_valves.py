@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from components.hydraulic import (DirectionalValve22, DirectionalValve32, DirectionalValve42,
+from pvgraph.components.hydraulic import (DirectionalValve22, DirectionalValve32, DirectionalValve42,
                                   DirectionalValve43, ServoValve, Tank, VolumeNode, FlowSource)
 from hydraulic_helpers import fixed_observed, jacobian_fd_error, requires_solver
 from pvgraph.circuit import Circuit
@@ -136,7 +136,7 @@ def test_valve_bench_jacobians_and_conservation():
     c.add("vb", VolumeNode(V=1e-4, p0=bar(10)))
     c.add("tank", Tank())
     c.add("dut", DirectionalValve43(A_max=A_MAX, centre="tandem"))
-    from components.signal import Constant
+    from pvgraph.components.signal import Constant
     c.add("u", Constant(k=0.03))
     c.connect("pump.port", "vp.port", "dut.P")
     c.connect("dut.A", "va.port")

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from components.hydraulic import FlowControlValve, PressureSource, ShuttleValve, Tank
+from pvgraph.components.hydraulic import FlowControlValve, PressureSource, ShuttleValve, Tank
 from hydraulic_helpers import fixed_observed, jacobian_fd_error, value
 from pvgraph.laws import orifice_flow
 from pvgraph.testing import Flow, Pressure, bench_circuit

@@ -7,8 +7,8 @@ import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from components.hydraulic import CheckValve, FlowSource, Orifice, VolumeNode
-from components.hydraulic.fluid import (MINERAL_OIL, P_ATM, CavitationWarning, Fluid,
+from pvgraph.components.hydraulic import CheckValve, FlowSource, Orifice, VolumeNode
+from pvgraph.components.hydraulic.fluid import (MINERAL_OIL, P_ATM, CavitationWarning, Fluid,
                                         cavitation_compliance)
 from hydraulic_helpers import jacobian_fd_error, requires_solver
 from pvgraph.circuit import Circuit

@@ -5,11 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from components.hydraulic import (FixedDisplacementPump, HydraulicMotor, LoadSensingPump, Orifice,
+from pvgraph.components.hydraulic import (FixedDisplacementPump, HydraulicMotor, LoadSensingPump, Orifice,
                                   PressureCompensatedPump, PressureSource, Tank,
                                   VariableDisplacementPump, VolumeNode)
-from components.mechanical import Inertia, RotationalDamper, SpeedSource
-from components.signal import Constant
+from pvgraph.components.mechanical import Inertia, RotationalDamper, SpeedSource
+from pvgraph.components.signal import Constant
 from hydraulic_helpers import jacobian_fd_error, requires_solver
 from pvgraph.circuit import Circuit
 from pvgraph.errors import ParameterError

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from components.hydraulic import (CounterbalanceValve, DynamicReliefValve, FlowSource, Orifice,
+from pvgraph.components.hydraulic import (CounterbalanceValve, DynamicReliefValve, FlowSource, Orifice,
                                   PilotReliefValve, PressureReducingValve, PressureSource,
                                   ReliefValve, SequenceValve, Tank, VolumeNode)
 from hydraulic_helpers import fixed_observed, jacobian_fd_error, requires_solver

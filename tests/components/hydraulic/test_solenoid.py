@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from components.hydraulic import OnOffValve, PWMValve, TimedOnOffValve
-from components.hydraulic.solenoid import L2_AREA, L2_K
+from pvgraph.components.hydraulic import OnOffValve, PWMValve, TimedOnOffValve
+from pvgraph.components.hydraulic.solenoid import L2_AREA, L2_K
 from hydraulic_helpers import jacobian_fd_error, requires_solver, value, vector
 from pvgraph import expr as E
 from pvgraph.errors import ParameterError

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from components.hydraulic import FlowSource, Plug, PressureSource, Pump, Tank, VolumeNode
+from pvgraph.components.hydraulic import FlowSource, Plug, PressureSource, Pump, Tank, VolumeNode
 from hydraulic_helpers import jacobian_fd_error, requires_solver, value
 from pvgraph.circuit import Circuit
 from pvgraph.errors import ParameterError

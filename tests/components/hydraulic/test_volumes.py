@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from components.hydraulic import FlowSource, PistonChamber, Plug, VolumeNode
-from components.hydraulic.volumes import FluidCompliance, effective_bulk_modulus
+from pvgraph.components.hydraulic import FlowSource, PistonChamber, Plug, VolumeNode
+from pvgraph.components.hydraulic.volumes import FluidCompliance, effective_bulk_modulus
 from hydraulic_helpers import VelocityDrive, jacobian_fd_error, requires_solver, value, vector
 from pvgraph.circuit import Circuit
 from pvgraph.errors import ParameterError

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from components.mechanical import EndStop, ForceInput, SpoolMass
-from components.signal import Constant
+from pvgraph.components.mechanical import EndStop, ForceInput, SpoolMass
+from pvgraph.components.signal import Constant
 from pvgraph import Circuit, ParameterError
 from pvgraph.testing import Force, bench_circuit
 from pvgraph.units import mm

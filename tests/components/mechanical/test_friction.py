@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from components.mechanical import (Damper, ForceInput, Friction, SpoolMass, TwoFlangeDamper)
-from components.mechanical.laws import stribeck_friction
-from components.signal import Constant
+from pvgraph.components.mechanical import (Damper, ForceInput, Friction, SpoolMass, TwoFlangeDamper)
+from pvgraph.components.mechanical.laws import stribeck_friction
+from pvgraph.components.signal import Constant
 from pvgraph import Circuit, ParameterError
 from pvgraph.laws import coulomb_friction
 from pvgraph.testing import Force, Position, bench_circuit

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from components.mechanical import ForceInput, LinearSpring, PositionInput, SpoolMass
-from components.signal import Constant, Sine
+from pvgraph.components.mechanical import ForceInput, LinearSpring, PositionInput, SpoolMass
+from pvgraph.components.signal import Constant, Sine
 from pvgraph import Circuit
 
 

@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.hydraulic import FlowSensor, Orifice, PressureSensor, PressureSource, Tank
-from components.mechanical import (AngleSensor, ForceSensor, Inertia, Lever, Mass, PositionSensor,
+from pvgraph.components.hydraulic import FlowSensor, Orifice, PressureSensor, PressureSource, Tank
+from pvgraph.components.mechanical import (AngleSensor, ForceSensor, Inertia, Lever, Mass, PositionSensor,
                                    RackPinion, RotationalFixed, ShaftSpringDamper, SpeedSensor,
                                    SpeedSource, TorqueInput, TorqueSensor, TorqueSource,
                                    VelocitySensor, LinearSpring, Fixed, ForceInput)
-from components.signal import Constant
+from pvgraph.components.signal import Constant
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "hydraulic"))
 from hydraulic_helpers import jacobian_fd_error, requires_solver, value  # noqa: E402
 from pvgraph.circuit import Circuit

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from components.mechanical import (LEVER_EQUIVALENT_MASS, MAIN_SPOOL_MASS, Damper, Fixed,
+from pvgraph.components.mechanical import (LEVER_EQUIVALENT_MASS, MAIN_SPOOL_MASS, Damper, Fixed,
                                    LinearSpring, SpoolMass, TwoFlangeSpring)
 from pvgraph import Circuit, ParameterError
 from pvgraph.testing import Force, Position, bench_circuit

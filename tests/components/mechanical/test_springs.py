@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from components.mechanical import (CenteringSpring, LinearSpring, SpoolMass, TwoFlangeSpring,
+from pvgraph.components.mechanical import (CenteringSpring, LinearSpring, SpoolMass, TwoFlangeSpring,
                                    TwoStageSpring)
 from pvgraph import Circuit, ParameterError
 from pvgraph.testing import Force, Position, bench_circuit
@@ -117,8 +117,8 @@ def test_two_stage_spring_mass_oscillates_about_equilibrium(sim):
     spool = c.add("spool", SpoolMass(m=0.02, x0=5.2e-3))
     spring = c.add("spring", TwoStageSpring())
     c.connect(spool.flange, spring.flange)
-    from components.mechanical import Damper, ForceInput
-    from components.signal import Constant
+    from pvgraph.components.mechanical import Damper, ForceInput
+    from pvgraph.components.signal import Constant
     c.add("damper", Damper(d=50.0))
     push = c.add("push", ForceInput())
     c.connect(c.add("F", Constant(k=200.0)).y, push.u)

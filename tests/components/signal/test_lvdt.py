@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from components.mechanical import SpoolMass
-from components.signal import LVDT
+from pvgraph.components.mechanical import SpoolMass
+from pvgraph.components.signal import LVDT
 from pvgraph import ParameterError
 from pvgraph.testing import Force, Position, bench_circuit
 from pvgraph.units import mm

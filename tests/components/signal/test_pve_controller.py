@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from components.mechanical import SpoolMass
-from components.signal import LVDT, PVEController
+from pvgraph.components.mechanical import SpoolMass
+from pvgraph.components.signal import LVDT, PVEController
 from pvgraph import ParameterError
 from pvgraph.testing import Signal, bench_circuit
 from pvgraph.units import mm
@@ -88,8 +88,8 @@ def test_closed_loop_with_lvdt_settles_at_the_proportional_equilibrium(sim):
     ``k * x = G * 1.4e3 * (x_set - 0.945 * x)``: the LVDT's gain and the finite loop gain both
     show in the final position.
     """
-    from components.mechanical import Damper, ForceInput, LinearSpring
-    from components.signal import Constant, Sum
+    from pvgraph.components.mechanical import Damper, ForceInput, LinearSpring
+    from pvgraph.components.signal import Constant, Sum
     from pvgraph import Circuit
     G, k = 20.0, 3596.0
     c = Circuit("loop")

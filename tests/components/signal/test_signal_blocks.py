@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from components.signal import (Constant, FirstOrderLag, Gain, Saturation, Step, Sum, Sum3,
+from pvgraph.components.signal import (Constant, FirstOrderLag, Gain, Saturation, Step, Sum, Sum3,
                                TimeTable)
 from pvgraph import Circuit, ParameterError
 from pvgraph.testing import Signal, bench_circuit

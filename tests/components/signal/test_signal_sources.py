@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from components.signal import Constant, FirstOrderLag, Ramp, Sine, Step, TimeTable
+from pvgraph.components.signal import Constant, FirstOrderLag, Ramp, Sine, Step, TimeTable
 from pvgraph import Circuit, ParameterError
 
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from components import LaminarOrifice, Orifice, PressureSource, Tank, VolumeNode
+from pvgraph.components import LaminarOrifice, Orifice, PressureSource, Tank, VolumeNode
 from pvgraph import Circuit
 from pvgraph.analysis import FitParameter, calibrate, steady_state
 from pvgraph.analysis.calibrate import CalibrationError

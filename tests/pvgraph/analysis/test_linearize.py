@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components import (Constant, Damper, FlowSource, ForceInput, LaminarOrifice, LinearSpring,
+from pvgraph.components import (Constant, Damper, FlowSource, ForceInput, LaminarOrifice, LinearSpring,
                         SpoolMass, Tank, VolumeNode)
 from pvgraph import Circuit
 from pvgraph.analysis import linearize_circuit
@@ -144,7 +144,7 @@ def test_damping_of_spring_mass_damper():
 
 def p_loop(u):
     """r -> sum (r - y) -> gain k -> lags tau 1, 1/2, 1/3 -> y: plant 6/((s+1)(s+2)(s+3))."""
-    from components.signal import FirstOrderLag, Gain, Sum
+    from pvgraph.components.signal import FirstOrderLag, Gain, Sum
     c = Circuit("p_loop")
     ref = c.add("ref", Constant(k=u["r"]))
     err = c.add("err", Sum(k1=1.0, k2=-1.0))

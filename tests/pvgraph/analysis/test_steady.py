@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components import FlowSource, Orifice, Tank, VolumeNode
+from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
 from pvgraph import Circuit, Component, Variable, der
 from pvgraph.analysis import steady_state
 from pvgraph.analysis.steady import _newton, _Scaled
@@ -68,8 +68,8 @@ def test_no_steady_state_names_the_volume():
 
 
 def test_pvg32_rig_needs_continuation_from_rest():
-    from circuits.pvg32.parameters import report_tuned
-    from circuits.rig import build_rig
+    from pvgraph.circuits.pvg32.parameters import report_tuned
+    from pvgraph.circuits.rig import build_rig
     s = build_rig(report_tuned(), U_input=4.29).compile()
     op = steady_state(s)
     r = s.residual(0.0, op.y, op.yp)
@@ -80,8 +80,8 @@ def test_pvg32_rig_needs_continuation_from_rest():
 def test_operating_point_gives_derived_outputs():
     """``op[name]`` also reads outputs declared with ``v.observe`` (here the rig's L3 flow), which
     must equal the laminar law K_L3 (Pf - Pb) at the same point."""
-    from circuits.pvg32.parameters import report_tuned
-    from circuits.rig import build_rig
+    from pvgraph.circuits.pvg32.parameters import report_tuned
+    from pvgraph.circuits.rig import build_rig
     p = report_tuned()
     op = steady_state(build_rig(p, U_input=4.29).compile())
     assert "load.L3.q" in op.system.observed

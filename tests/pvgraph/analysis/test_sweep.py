@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.hydraulic import Orifice, PressureSource, Tank, VolumeNode
+from pvgraph.components.hydraulic import Orifice, PressureSource, Tank, VolumeNode
 from pvgraph.analysis import steady_state
 from pvgraph.analysis.sweep import (CaseResult, SweepError, SweepResult, grid, random_sample,
                                     sweep)

@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 import pytest
 
-from components import FlowSource, Orifice, Tank, VolumeNode
+from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
 from pvgraph import Circuit
 from pvgraph.analysis import CompiledRun, grid, steady_state, sweep, sweep_system
 from pvgraph.analysis.sweep import SweepError
