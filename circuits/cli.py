@@ -23,8 +23,8 @@ import os
 import sys
 import time
 
-from pvgraph.cli import (_check_outputs, _display, _frequency_response, _progress, _sweep_cases,
-                         _write_json_atomic, run_sweep)
+from pvgraph.cli import (_check_outputs, _display, _frequency_response, _noted_case, _progress,
+                         _sweep_cases, _write_json_atomic, run_sweep)
 from pvgraph.errors import InitializationError, ParameterError, PvgraphError, SolverError
 from pvgraph.units import to_bar, to_lpm, to_mm
 
@@ -193,8 +193,22 @@ def _sweepable(params) -> dict:
     return out
 
 
-def _rig_case(*, scenario: str, preset: str, law: str, settle: float, after: float,
-              **params) -> dict:
+def _rig_case(**kwargs) -> dict:
+    """One sweep case (see :func:`_scenario_case`) on the compiled rig of this process.
+
+    The rig of a case is built with its values; a rig built like one compiled before (the
+    swept names are runtime parameters of its components, e.g. ``rig.pump_flow`` the pump's
+    ``Q0``, ``rig.return_line_K`` the return line's ``K``) runs on that compiled system with
+    the new values. A value that changes the structure (``rig.return_line_K`` None or not, a
+    structural component field) compiles, with a one-line note.
+    """
+    from pvgraph.circuit import reuse_compiled
+    with reuse_compiled():
+        return _noted_case(_scenario_case, **kwargs)
+
+
+def _scenario_case(*, scenario: str, preset: str, law: str, settle: float, after: float,
+                   **params) -> dict:
     """One sweep case: a lab scenario on the rig with some parameters changed (SI outputs)."""
     from pydantic import ValidationError
 

@@ -17,15 +17,94 @@ circuit and connected like any component (``rig > pvg > pvb > compensator``).
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 import re
 import warnings
+from collections import OrderedDict
 
 from .component import Component, Port, PortRef
 from .errors import (CircuitError, ConnectionError_, ParameterError, PlausibilityWarning,
                      StructureError)
 
-__all__ = ["Circuit"]
+__all__ = ["Circuit", "reuse_compiled"]
+
+#: compiled systems kept for :func:`reuse_compiled`, per circuit structure, most recent last
+_COMPILED: OrderedDict = OrderedDict()
+_REUSE = {"depth": 0, "max": 16, "hits": 0, "compilations": 0}
+
+
+@contextlib.contextmanager
+def reuse_compiled(max_structures: int = 16):
+    """Inside this block, ``Circuit.compile()`` of a circuit built like one compiled before
+    returns that system with the new circuit's runtime parameter values, without compiling.
+
+    "Built like" means the same components (paths and types), connections, exposed ports,
+    compile options, start values and structural parameter values
+    (:meth:`~pvgraph.system.System.params_from` decides); anything else compiles. The compiled
+    systems stay in this process across blocks (the ``max_structures`` most recent ones), so
+    code that builds and compiles a circuit per call, such as a sweep case run in a worker
+    process, compiles each structure once per process::
+
+        with reuse_compiled():
+            result = run_scenario(...)          # builds and compiles inside
+    """
+    _REUSE["depth"] += 1
+    _REUSE["max"] = int(max_structures)
+    try:
+        yield _REUSE
+    finally:
+        _REUSE["depth"] -= 1
+
+
+def _structure_key(circuit, options) -> tuple:
+    """Components (path, type), connections and exposed ports, to any depth, and options."""
+    from .compiler import _rel_path
+    parts = [circuit.name, tuple(sorted((k, repr(v)) for k, v in options.items()))]
+
+    def walk(node, prefix):
+        for name, child in node._components.items():
+            parts.append((prefix + name, type(child).__qualname__))
+            if isinstance(child, Circuit):
+                walk(child, f"{prefix}{name}.")
+        parts.append(tuple(tuple((prefix + _rel_path(node, r.owner), r.name) for r in refs)
+                           for refs in node._connections))
+        parts.append(tuple((n, _rel_path(node, r.owner), r.name, v)
+                           for n, (r, v) in node._exposed.items()))
+
+    walk(circuit, "")
+    return tuple(parts)
+
+
+def _reused(circuit, options):
+    """A compiled system of ``circuit``'s structure carrying its values, or None."""
+    key = _structure_key(circuit, options)
+    why = None
+    for compiled in _COMPILED.get(key, ()):
+        try:
+            values = compiled.params_from(circuit)
+        except ParameterError as exc:
+            why = str(exc)                    # another structural value
+            continue
+        _COMPILED.move_to_end(key)
+        _REUSE["hits"] += 1
+        return key, compiled.with_params(values, recompile=False)
+    if why is not None:
+        from .system import RecompileWarning
+        warnings.warn(RecompileWarning(f"compiling again: {why.split('. Compile it')[0]}"),
+                      stacklevel=3)
+    return key, None
+
+
+def _keep(key, system) -> None:
+    _COMPILED.setdefault(key, []).append(system)
+    _COMPILED.move_to_end(key)
+    _REUSE["compilations"] += 1
+    while sum(len(v) for v in _COMPILED.values()) > max(_REUSE["max"], 1):
+        first = next(iter(_COMPILED))
+        _COMPILED[first].pop(0)
+        if not _COMPILED[first]:
+            del _COMPILED[first]
 
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -194,6 +273,11 @@ class Circuit:
         start values).
         """
         from .compiler import compile_circuit
+        key = None
+        if _REUSE["depth"]:
+            key, system = _reused(self, options)
+            if system is not None:
+                return system
         try:
             system = compile_circuit(self, **options)
         except StructureError as exc:
@@ -210,6 +294,8 @@ class Circuit:
                 f"reference (no Tank or pressure source): its pressures float on the start "
                 f"values of its volumes. Connect a Tank (or a PressureSource) to it."),
                 stacklevel=2)
+        if key is not None:
+            _keep(key, system)
         return system
 
     # parameters --------------------------------------------------------------------------------

@@ -477,16 +477,26 @@ def run_sweep(args, run, cases, units, check):
     return result, backend
 
 
-def _target_case(*, target: str, options: dict, t_end: float, outputs: tuple, rtol: float,
-                 **params) -> dict:
-    """One sweep case of a circuit target: set the parameters, simulate, final values (SI)."""
-    from .simulate import simulate
-    circuit = load_target(target, options).circuit()
-    circuit.set_parameters(params)
-    system = circuit.compile()
-    names = check_names(system, outputs, _aliases(circuit))
-    sol = simulate(system, t_end, rtol=rtol)
-    return {label: sol.final(n) for label, n in zip(outputs, names)}
+def _target_circuit(target: str, options: dict):
+    """The circuit of a command-line target (a picklable factory for the sweep's workers)."""
+    return load_target(target, options).circuit()
+
+
+def _noted_case(run, **params) -> dict:
+    """Run one sweep case; a compilation for a structural parameter is a one-line note on
+    stderr (once per structure and worker), other warnings pass through."""
+    import warnings
+
+    from .system import RecompileWarning
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RecompileWarning)
+        out = run(**params)
+    for w in caught:
+        if issubclass(w.category, RecompileWarning):
+            print(f"note: {w.message}", file=sys.stderr)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return out
 
 
 def _check_target_case(circuit, case: dict) -> None:
@@ -512,10 +522,13 @@ def cmd_sweep(args) -> int:
     check_names(system, outputs, _aliases(circuit))
     t_end = args.t_end if args.t_end is not None else (target.t_end or DEFAULT_T_END)
     cases = _sweep_cases(args, valid)
-    run = functools.partial(_target_case, target=args.target, options=target.options,
-                            t_end=t_end, outputs=outputs, rtol=args.rtol)
-    units = {n: system.unit(r) for n, r in zip(outputs, check_names(system, outputs,
-                                                                       _aliases(circuit)))}
+    resolved = check_names(system, outputs, _aliases(circuit))
+    # compiled once per worker; each case runs with its values as runtime parameters
+    from .analysis.sweep import CompiledRun
+    run = functools.partial(_noted_case, CompiledRun(
+        functools.partial(_target_circuit, args.target, target.options),
+        outputs=dict(zip(outputs, resolved)), t_end=t_end, rtol=args.rtol))
+    units = {n: system.unit(r) for n, r in zip(outputs, resolved)}
     result, backend = run_sweep(args, run, cases, units,
                                 functools.partial(_check_target_case, circuit))
     if result is None:

@@ -350,6 +350,24 @@ def test_sweep_a_file_target_with_units(rig_file, tmp_path, capsys):
     assert "node.port.p [bar]" in capsys.readouterr().out
 
 
+def test_sweep_of_a_file_target_reuses_one_compiled_system(rig_file, tmp_path, capsys):
+    """orifice.A and pump.Q are runtime parameters (no note); node.air is structural: its
+    other value is compiled once, with a one-line note, and gives the same pressures."""
+    out = tmp_path / "reuse"
+    assert main(["sweep", f"{rig_file}:build", "--param", "orifice.A=1 mm^2,2 mm^2",
+                 "--param", "node.air=0,0.01", "--var", "node.port.p", "--t-end", "4",
+                 "--backend", "serial", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    notes = [line for line in err.splitlines() if line.startswith("note:")]
+    assert len(notes) == 1 and "node.air" in notes[0]
+    cases = _json(out / "sweep.json")["cases"]
+    p = {(c["params"]["orifice.A"], c["params"]["node.air"]): c["outputs"]["node.port.p"]
+         for c in cases}
+    for (A, air), value in p.items():
+        assert value == pytest.approx(_p_steady(A=A), rel=3e-3)
+        assert value == pytest.approx(p[(A, 0.0)], rel=1e-3)    # air only slows the rise
+
+
 @pytest.mark.parametrize("param, message", [
     ("orifice.A=1e-6,-1e-6", "nothing was run"),
     ("orifice.AA=1e-6", "did you mean 'orifice.A'"),

@@ -46,6 +46,23 @@ Design
   ``"nonfinite"``. ``check(case)`` runs on every case before any case runs: invalid parameter
   values raise :class:`SweepError` naming the cases, and nothing runs.
 
+Compile once
+------------
+A ``run`` that builds and compiles its circuit pays the compilation on every case.
+:class:`CompiledRun` (and :func:`sweep_system`) compiles the circuit once per worker process and
+runs each case with its values as runtime parameters (``simulate(..., params=)``,
+``steady_state(..., params=)``)::
+
+    run = CompiledRun(build_bench, outputs=["node.port.p"], steady=True)
+    result = sweep(run, grid({"orifice.A": [1e-6, 2e-6], "pump.Q": [1e-4, 2e-4]}))
+
+A case that changes a structural parameter (one the equations turn into a plain number) is
+compiled again, once per distinct set of structural values in each process, with a
+:class:`~pvgraph.system.RecompileWarning` naming the parameter. With ``build=``, the case values
+are arguments of a builder rather than component parameters: each case builds its circuit (cheap),
+reads its runtime parameter values into the compiled system of the same structure
+(:meth:`~pvgraph.system.System.params_from`) and compiles only a structure not met before.
+
 Cases
 -----
 :func:`grid` gives the cartesian product of value lists; :func:`random_sample` draws ``n``
@@ -75,10 +92,10 @@ from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 import numpy as np
 
 from .._progress import ProgressBar
-from ..errors import PvgraphError
+from ..errors import ParameterError, PvgraphError
 
 __all__ = ["SweepError", "SweepInterrupted", "CaseResult", "SweepResult", "sweep", "grid",
-           "random_sample", "BACKENDS", "LOG_NAME"]
+           "random_sample", "CompiledRun", "sweep_system", "BACKENDS", "LOG_NAME"]
 
 BACKENDS = ("process", "serial", "dask")
 SAMPLING_METHODS = ("uniform", "lhs")
@@ -731,6 +748,178 @@ def _read_log(path, cases) -> dict[int, CaseResult]:
                              f"another output folder") from None
         out[r.index] = r
     return out
+
+
+# --------------------------------------------------------------------------------------------
+#: compiled systems of this process, per CompiledRun key: {"base": System or None,
+#: "structures": {key: System}, "compilations": int}
+_COMPILED: dict[str, dict] = {}
+#: CompiledRun keys whose compiled systems are kept in a process (the oldest is dropped)
+MAX_CACHED_RUNS = 8
+
+
+class CompiledRun:
+    """``run(**case)`` for :func:`sweep` that compiles its circuit once per process.
+
+    Parameters
+    ----------
+    circuit : Circuit or callable, optional
+        The circuit, or a callable returning it (a module-level function or a
+        :func:`functools.partial` of one, for the process backend). Case names are its
+        parameter names, ``"component.field"`` (``"orifice.A"``).
+    build : callable, optional
+        Instead of ``circuit``: ``build(**case) -> Circuit``, for case names that are builder
+        arguments. Each case builds its circuit and runs on the compiled system of the same
+        structure with the circuit's runtime parameter values.
+    outputs : sequence of str or dict
+        Variable names whose values are returned (final values of a simulation, or values at
+        the steady state); a dict maps output labels to variable names.
+    t_end : float, optional
+        Simulate from 0 to ``t_end`` [s] at ``rtol``.
+    steady : bool
+        Solve the steady state at tolerance ``tol`` instead of simulating.
+    reduce : callable, optional
+        ``reduce(solution_or_operating_point, case) -> dict`` replaces the default outputs.
+    warm : bool
+        Steady states start from the last steady state this process solved on a system of the
+        same size (neighbouring cases of a sweep converge in a few Newton steps); the result
+        then agrees with a cold start to within ``tol``. Default: from the system's start
+        values, as a rebuilt case does.
+    key : str, optional
+        Names the compiled systems in each process's cache; two runs with the same key share
+        them. Default: unique to this object (and its pickled copies).
+
+    The compiled systems live in a per-process cache, so a process pool compiles once per
+    worker; :meth:`compilations` counts the compilations of this process.
+    """
+
+    def __init__(self, circuit=None, *, build: Callable | None = None,
+                 outputs: Sequence[str] | Mapping[str, str] = (), t_end: float | None = None,
+                 steady: bool = False, rtol: float = 1e-6, tol: float = 1e-10,
+                 reduce: Callable | None = None, warm: bool = False, key: str | None = None):
+        import uuid
+        if (circuit is None) == (build is None):
+            raise SweepError("CompiledRun takes a circuit (case names are its parameters) or "
+                             "build= (case names are the builder's arguments), not both")
+        if build is not None and not callable(build):
+            raise SweepError(f"build must be callable, got {type(build).__name__}")
+        if steady == (t_end is not None):
+            raise SweepError("CompiledRun needs either t_end= (simulate) or steady=True")
+        if t_end is not None and not (isinstance(t_end, numbers.Real) and t_end > 0):
+            raise SweepError(f"t_end must be a positive time [s], got {t_end!r}")
+        outputs = dict(outputs) if isinstance(outputs, Mapping) else \
+            {str(n): str(n) for n in outputs}
+        if not outputs and reduce is None:
+            raise SweepError("CompiledRun needs outputs= (variable names) or reduce=")
+        self.circuit, self.build, self.outputs = circuit, build, outputs
+        self.t_end, self.steady, self.rtol, self.tol = t_end, bool(steady), rtol, tol
+        self.reduce, self.warm = reduce, bool(warm)
+        self.key = key or uuid.uuid4().hex
+
+    # the per-process cache ------------------------------------------------------------------
+    def _cache(self) -> dict:
+        entry = _COMPILED.get(self.key)
+        if entry is None:
+            while len(_COMPILED) >= MAX_CACHED_RUNS:
+                del _COMPILED[next(iter(_COMPILED))]
+            entry = _COMPILED[self.key] = {"base": None, "structures": {}, "compilations": 0,
+                                           "warm": {}}
+        return entry
+
+    def compilations(self) -> int:
+        """Compilations this object (or its key) caused in this process."""
+        return _COMPILED.get(self.key, {}).get("compilations", 0)
+
+    def _circuit(self):
+        from ..circuit import Circuit
+        c = self.circuit
+        if not isinstance(c, Circuit):
+            c = c()
+            if not isinstance(c, Circuit):
+                raise SweepError(f"CompiledRun: the circuit factory returned "
+                                 f"{type(c).__name__}, not a Circuit")
+        return c
+
+    def system(self, case: Mapping[str, Any]):
+        """The compiled system carrying the values of ``case`` (compiled only if needed)."""
+        import warnings
+
+        from ..system import RecompileWarning
+        entry = self._cache()
+        if self.build is not None:
+            circuit = self.build(**case)
+            for compiled in entry["structures"].values():
+                try:
+                    values = compiled.params_from(circuit)
+                except ParameterError:
+                    continue
+                return compiled.with_params(values)
+            if entry["structures"]:
+                warnings.warn(RecompileWarning(
+                    f"{circuit.name}: compiling again, the case {dict(case)} builds another "
+                    f"structure"), stacklevel=2)
+            compiled = circuit.compile()
+            entry["compilations"] += 1
+            entry["structures"][len(entry["structures"])] = compiled
+            return compiled
+        if entry["base"] is None:
+            entry["base"] = self._circuit().compile()
+            entry["compilations"] += 1
+        base = entry["base"]
+        runtime = {k: v for k, v in case.items()
+                   if k in base.parameters and not base.parameters[k].structural}
+        fixed = {k: v for k, v in case.items() if k not in runtime and not (
+            k in base.parameters and _same(base.parameters[k].value, v))}
+        if not fixed:
+            return base.with_params(runtime)
+        skey = tuple(sorted((k, repr(v)) for k, v in fixed.items()))
+        compiled = entry["structures"].get(skey)
+        if compiled is None:
+            compiled = base.with_params(fixed)        # compiles, with a RecompileWarning
+            entry["compilations"] += 1
+            entry["structures"][skey] = compiled
+        return compiled.with_params(runtime)
+
+    def __call__(self, **case) -> dict:
+        from ..simulate import simulate
+        from .steady import steady_state
+        system = self.system(case)
+        if self.steady:
+            starts = self._cache()["warm"]
+            res = steady_state(system, tol=self.tol,
+                               y0=starts.get(system.n) if self.warm else None)
+            if self.warm:
+                starts[system.n] = res.y
+            value = res.__getitem__
+        else:
+            res = simulate(system, self.t_end, rtol=self.rtol)
+            value = res.final
+        if self.reduce is not None:
+            return self.reduce(res, dict(case))
+        return {label: value(name) for label, name in self.outputs.items()}
+
+
+def _same(a, b) -> bool:
+    """A structural value equal to the compiled one needs no compilation."""
+    try:
+        return bool(np.all(np.asarray(a) == np.asarray(b))) and np.shape(a) == np.shape(b)
+    except (TypeError, ValueError):
+        return False
+
+
+def sweep_system(circuit, cases: Iterable[Mapping[str, Any]], *,
+                 outputs: Sequence[str] | Mapping[str, str] = (), t_end: float | None = None,
+                 steady: bool = False, rtol: float = 1e-6, tol: float = 1e-10,
+                 build: Callable | None = None, reduce: Callable | None = None,
+                 warm: bool = False, **options) -> SweepResult:
+    """:func:`sweep` of a :class:`CompiledRun`: the circuit compiled once per process.
+
+    ``sweep_system(bench, grid({"orifice.A": [...], "pump.Q": [...]}), outputs=["node.port.p"],
+    steady=True)``; ``options`` go to :func:`sweep` (backend, workers, out, progress, ...).
+    """
+    run = CompiledRun(circuit, build=build, outputs=outputs, t_end=t_end, steady=steady,
+                      rtol=rtol, tol=tol, reduce=reduce, warm=warm)
+    return sweep(run, cases, **options)
 
 
 # --------------------------------------------------------------------------------------------

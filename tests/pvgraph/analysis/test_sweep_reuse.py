@@ -1,0 +1,144 @@
+"""Sweeps on one compiled system: the same numbers as building and compiling every case,
+the closed-form orifice pressure, and a structural parameter compiled again (once per value)."""
+
+import functools
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
+from pvgraph import Circuit
+from pvgraph.analysis import CompiledRun, grid, steady_state, sweep, sweep_system
+from pvgraph.analysis.sweep import SweepError
+from pvgraph.system import RecompileWarning
+
+RHO, CD = 870.0, 0.6
+
+
+def orifice_bench(Q=1e-4, A=2e-6, air=0.0):
+    """Flow source Q -> volume -> orifice A -> tank: steady p = rho/2 (Q / (Cd A))^2."""
+    c = Circuit("orifice_bench")
+    pump = c.add("pump", FlowSource(Q=Q))
+    node = c.add("node", VolumeNode(V=1e-4, air=air))
+    orf = c.add("orifice", Orifice(A=A, Cd=CD, rho=RHO))
+    tank = c.add("tank", Tank())
+    c.connect(pump.port, node.port, orf.a)
+    c.connect(orf.b, tank.port)
+    return c
+
+
+def rebuilt(**case):
+    """The reference: build and compile every case."""
+    c = orifice_bench()
+    c.set_parameters(case)
+    return {"p": steady_state(c.compile(), tol=1e-12)["node.port.p"]}
+
+
+CASES = grid({"orifice.A": [1e-6, 2e-6, 4e-6], "pump.Q": [5e-5, 1e-4, 2e-4]})
+
+
+def analytic(case, Q=None, A=None):
+    """Steady orifice drop: Q = Cd A sqrt(2/rho) dp / (dp^2 + dp_t^2)^(1/4) (the turbulent
+    law with its smooth laminar transition), i.e. with s = rho/2 (Q/(Cd A))^2:
+    dp^2 = (s^2 + sqrt(s^4 + 4 s^2 dp_t^2)) / 2, and dp = s for dp >> dp_t."""
+    Q = case["pump.Q"] if Q is None else Q
+    A = case["orifice.A"] if A is None else A
+    s = RHO / 2.0 * (Q / (CD * A)) ** 2
+    dp_t = Orifice(A=A, Cd=CD, rho=RHO).params.transition()
+    return math.sqrt((s * s + math.sqrt(s ** 4 + 4.0 * s * s * dp_t * dp_t)) / 2.0)
+
+
+def test_reused_system_matches_rebuilds_and_the_closed_form():
+    run = CompiledRun(orifice_bench, outputs={"p": "node.port.p"}, steady=True, tol=1e-12)
+    reused = sweep(run, CASES, backend="serial")
+    fresh = sweep(rebuilt, CASES, backend="serial")
+    assert run.compilations() == 1 and not reused.failed and not fresh.failed
+    np.testing.assert_allclose(reused.column("p"), fresh.column("p"), rtol=1e-9, atol=0.0)
+    exact = np.array([analytic(c) for c in CASES])
+    np.testing.assert_allclose(reused.column("p"), exact, rtol=1e-9)
+    # 1.9 ... 483 bar, well above the transition: the plain turbulent law within 1e-4
+    turbulent = [RHO / 2 * (c["pump.Q"] / (CD * c["orifice.A"])) ** 2 for c in CASES]
+    np.testing.assert_allclose(reused.column("p"), turbulent, rtol=1e-4)
+
+
+def test_structural_parameter_compiles_once_per_value_and_stays_right():
+    """VolumeNode's air content is compared with zero in Python (structural); the steady
+    pressure does not depend on it."""
+    cases = grid({"node.air": [0.0, 0.01], "orifice.A": [1e-6, 3e-6], "pump.Q": [1e-4]})
+    run = CompiledRun(orifice_bench, outputs={"p": "node.port.p"}, steady=True, tol=1e-12)
+    with pytest.warns(RecompileWarning, match=r"node\.air"):
+        res = sweep(run, cases, backend="serial")
+    assert not res.failed
+    assert run.compilations() == 2       # the base system and one for air = 0.01
+    np.testing.assert_allclose(res.column("p"), [analytic(c) for c in cases], rtol=1e-9)
+    fresh = sweep(rebuilt, cases, backend="serial")
+    np.testing.assert_allclose(res.column("p"), fresh.column("p"), rtol=1e-9, atol=0.0)
+
+
+def test_builder_arguments_reuse_the_compiled_structure():
+    """build= : case names are the builder's arguments; one structure, one compilation."""
+    run = CompiledRun(build=orifice_bench, outputs={"p": "node.port.p"}, steady=True, tol=1e-12)
+    cases = grid({"A": [1e-6, 2e-6], "Q": [1e-4, 2e-4]})
+    res = sweep(run, cases, backend="serial")
+    assert run.compilations() == 1 and not res.failed
+    expected = [analytic({}, Q=c["Q"], A=c["A"]) for c in cases]
+    np.testing.assert_allclose(res.column("p"), expected, rtol=1e-9)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RecompileWarning)
+        more = sweep(run, grid({"air": [0.02], "A": [1e-6]}), backend="serial")
+    assert run.compilations() == 2 and more[0].outputs["p"] == pytest.approx(
+        analytic({}, Q=1e-4, A=1e-6), rel=1e-9)
+
+
+def test_transient_final_values_match_rebuilds_in_worker_processes():
+    """Process backend: each worker compiles once; final pressures equal the rebuilt ones."""
+    def reference(case):
+        c = orifice_bench()
+        c.set_parameters(case)
+        from pvgraph.simulate import simulate
+        return simulate(c.compile(), 0.05, rtol=1e-8).final("node.port.p")
+
+    cases = grid({"orifice.A": [1e-6, 2e-6], "pump.Q": [1e-4, 2e-4]})
+    res = sweep_system(functools.partial(orifice_bench, Q=1e-4), cases,
+                       outputs=["node.port.p"], t_end=0.05, rtol=1e-8, workers=2)
+    assert not res.failed
+    np.testing.assert_allclose(res.column("node.port.p"), [reference(c) for c in cases],
+                               rtol=1e-9, atol=0.0)
+
+
+def test_bad_setups_are_named():
+    with pytest.raises(SweepError, match="t_end"):
+        CompiledRun(orifice_bench, outputs=["node.port.p"])
+    with pytest.raises(SweepError, match="not both"):
+        CompiledRun(orifice_bench, build=orifice_bench, outputs=["node.port.p"], steady=True)
+    run = CompiledRun(orifice_bench, outputs=["node.port.p"], steady=True)
+    res = sweep(run, [{"orifice.area": 1e-6}], backend="serial")
+    assert res[0].status == "failed" and "orifice.A" in res[0].error_message
+
+
+def test_reuse_compiled_gives_the_built_circuits_values_and_compiles_new_structures():
+    """Code that builds and compiles per call (a scenario runner) compiles each structure
+    once inside reuse_compiled(); the values are those of the circuit built."""
+    from pvgraph.circuit import _REUSE, reuse_compiled
+    with reuse_compiled():
+        n0, hits0 = _REUSE["compilations"], _REUSE["hits"]
+        first = orifice_bench(Q=1e-4, A=1e-6).compile()
+        second = orifice_bench(Q=2e-4, A=3e-6).compile()
+        assert _REUSE["compilations"] - n0 == 1 and _REUSE["hits"] - hits0 == 1
+        for system, Q, A in ((first, 1e-4, 1e-6), (second, 2e-4, 3e-6)):
+            assert steady_state(system, tol=1e-12)["node.port.p"] == pytest.approx(
+                analytic({}, Q=Q, A=A), rel=1e-9)
+        with pytest.warns(RecompileWarning, match=r"node\.air"):
+            orifice_bench(air=0.01).compile()
+        other = orifice_bench()                 # same parts, the orifice's ends swapped
+        other._connections = [other._connections[0][:2] + (other["orifice"].b,),
+                              (other["orifice"].a, other["tank"].port)]
+        flipped = other.compile()
+        assert _REUSE["compilations"] - n0 == 3
+        # flow now enters the orifice at b: the same drop, the orifice flow reversed
+        op = steady_state(flipped, tol=1e-12)
+        assert op["orifice.q"] == pytest.approx(-1e-4, rel=1e-9)
+    orifice_bench().compile()                   # outside the block: compiled as usual
+    assert _REUSE["compilations"] - n0 == 3
