@@ -4,7 +4,7 @@ from pathlib import Path
 
 from pvgraph.docgen import DEFAULT_OUTPUT, component_reference, library_modules
 
-DOC = Path(__file__).resolve().parents[2] / "docs" / "pvgraph.components.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "components.md"
 
 
 def test_docs_components_md_is_up_to_date():
