@@ -73,15 +73,9 @@ EDGE_EPS = 1e-3  # rounding of the edge opening [-] (fraction of the stroke)
 SWITCH = 1.0 + 2.0 * EDGE_EPS  # two-position valves: u = 0 and 1 reach past full opening
 
 
-class SpoolEdgeParams(Params):
-    A_max: float = Field(..., gt=0.0, le=1e-2, description="Fully open area of one edge [m^2]")
-    lap: float = Field(0.05, ge=0.0, lt=0.9,
-                       description="Overlap of the closed edges, fraction of the stroke [-]")
-    edge: Literal["linear", "table"] = Field("linear", description="Opening law of the edges [-]")
-    s_table: tuple[float, ...] | None = Field(
-        None, description="Opening past the lap, fraction of the stroke [-] (edge='table')")
-    A_table: tuple[float, ...] | None = Field(
-        None, description="Areas at s_table, fractions of A_max [-] (edge='table')")
+class EdgeFlowParams(Params):
+    """The flow law of a metering edge, shared by the spool valves."""
+
     A_leak: float = Field(1e-11, gt=0.0, le=1e-5,
                           description="Leakage area of each closed edge [m^2]")
     Cd: float = Field(0.6, gt=0.0, le=1.0, description="Discharge coefficient [-]")
@@ -90,6 +84,17 @@ class SpoolEdgeParams(Params):
     rho: float = rho_field()
     dp_t: float = Field(1e4, gt=0.0, le=1e6,
                         description="Laminar-turbulent transition pressure drop [Pa]")
+
+
+class SpoolEdgeParams(EdgeFlowParams):
+    A_max: float = Field(..., gt=0.0, le=1e-2, description="Fully open area of one edge [m^2]")
+    lap: float = Field(0.05, ge=0.0, lt=0.9,
+                       description="Overlap of the closed edges, fraction of the stroke [-]")
+    edge: Literal["linear", "table"] = Field("linear", description="Opening law of the edges [-]")
+    s_table: tuple[float, ...] | None = Field(
+        None, description="Opening past the lap, fraction of the stroke [-] (edge='table')")
+    A_table: tuple[float, ...] | None = Field(
+        None, description="Areas at s_table, fractions of A_max [-] (edge='table')")
 
     @model_validator(mode="after")
     def _table(self):
@@ -212,7 +217,7 @@ class DirectionalValve22(Component):
         return [v.P.q - q, v.P.q + v.A.q]
 
 
-class ServoValveParams(Params):
+class ServoValveParams(EdgeFlowParams):
     Q_nom: float = Field(..., gt=0.0, le=1.0,
                          description="Rated flow at full command and valve drop dp_nom [m^3/s]")
     dp_nom: float = Field(70e5, gt=0.0, le=1e8,
@@ -222,14 +227,6 @@ class ServoValveParams(Params):
     wn: float = Field(2 * math.pi * 80.0, gt=0.0, le=1e5,
                       description="Natural angular frequency (order 2) [rad/s]")
     zeta: float = Field(0.7, gt=0.0, le=10.0, description="Damping ratio (order 2) [-]")
-    A_leak: float = Field(1e-11, gt=0.0, le=1e-5,
-                          description="Leakage area of each closed edge [m^2]")
-    Cd: float = Field(0.6, gt=0.0, le=1.0, description="Discharge coefficient [-]")
-    theta: float = Field(math.radians(69.0), ge=0.0, le=math.pi / 2,
-                         description="Jet angle of the flow force [rad]")
-    rho: float = rho_field()
-    dp_t: float = Field(1e4, gt=0.0, le=1e6,
-                        description="Laminar-turbulent transition pressure drop [Pa]")
 
     def edges(self) -> SpoolEdgeParams:
         """The equivalent critically lapped, linear edges."""

@@ -105,22 +105,31 @@ def test_steady_flow_through_a_line_drops_the_friction_pressure():
     assert sol.final("dut.q") == pytest.approx(Q, rel=1e-8)
 
 
+WAVE_P0, WAVE_STEP = bar(50), bar(10)
+
+
+def _wave_at_closed_end(n, l, periods, points):
+    """A line of n sections, closed at b, stepped from WAVE_P0 by WAVE_STEP at a: times and the
+    pressure rise at b over ``periods`` quarter-wave periods 4 l / c."""
+    c = Circuit("wave")
+    c.add("src", PressureSource(p0=WAVE_P0 + WAVE_STEP))
+    c.add("line", segmented_line(n, l=l, d=0.02, friction="laminar", p0=WAVE_P0))
+    c.add("plug", Plug())
+    c.connect("src.port", "line.a")
+    c.connect("line.b", "plug.port")
+    T = 4 * l / math.sqrt(BETA / RHO)
+    t = np.linspace(0.0, periods * T, points)
+    sol = simulate(c, periods * T, rtol=1e-6, t_eval=t)
+    return t, sol[f"line.s{n - 1}.b.p"] - WAVE_P0
+
+
 @requires_solver
 @pytest.mark.slow
 def test_segmented_line_wave_time_and_quarter_wave_resonance():
     """Closed at b, stepped to p_s at a: the wave reaches b after l/c, period 4 l / c."""
-    n, l, p_0, step = 40, 20.0, bar(50), bar(10)
+    n, l, step = 40, 20.0, WAVE_STEP
     c_wave = math.sqrt(BETA / RHO)
-    c = Circuit("wave")
-    c.add("src", PressureSource(p0=p_0 + step))
-    c.add("line", segmented_line(n, l=l, d=0.02, friction="laminar", p0=p_0))
-    c.add("plug", Plug())
-    c.connect("src.port", "line.a")
-    c.connect("line.b", "plug.port")
-    T = 4 * l / c_wave
-    t = np.linspace(0.0, 3 * T, 3001)
-    sol = simulate(c, 3 * T, rtol=1e-6, t_eval=t)
-    p_b = sol[f"line.s{n - 1}.b.p"] - p_0
+    t, p_b = _wave_at_closed_end(n, l, 3, 3001)
     t_arrive = t[np.argmax(p_b > 0.5 * step)]
     assert t_arrive == pytest.approx(l / c_wave, rel=0.05)
     # the reflection doubles the step (a lumped chain overshoots a sharp front: Gibbs)
@@ -148,18 +157,10 @@ def test_line_jacobian_and_hose_softer_than_pipe():
 @requires_solver
 def test_short_segmented_line_wave_time_and_period():
     """As above with 12 sections over 6 m: wave time within 8 %, quarter-wave period 3 %."""
-    n, l, p_0, step = 12, 6.0, bar(50), bar(10)
+    n, l, step = 12, 6.0, WAVE_STEP
     c_wave = math.sqrt(BETA / RHO)
-    c = Circuit("wave")
-    c.add("src", PressureSource(p0=p_0 + step))
-    c.add("line", segmented_line(n, l=l, d=0.02, friction="laminar", p0=p_0))
-    c.add("plug", Plug())
-    c.connect("src.port", "line.a")
-    c.connect("line.b", "plug.port")
     T = 4 * l / c_wave
-    t = np.linspace(0.0, 2.5 * T, 1001)
-    sol = simulate(c, 2.5 * T, rtol=1e-6, t_eval=t)
-    p_b = sol[f"line.s{n - 1}.b.p"] - p_0
+    t, p_b = _wave_at_closed_end(n, l, 2.5, 1001)
     assert t[np.argmax(p_b > 0.5 * step)] == pytest.approx(l / c_wave, rel=0.08)
     up = np.flatnonzero((p_b[:-1] < step) & (p_b[1:] >= step))
     assert np.mean(np.diff(t[up])) == pytest.approx(T, rel=0.03)
