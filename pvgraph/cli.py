@@ -38,6 +38,7 @@ import json
 import math
 import os
 import sys
+import warnings
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -84,6 +85,7 @@ class Target:
     t_end: float | None = None
     options: dict = field(default_factory=dict)
     description: str = ""
+    source: str | None = None     # the user's file the builder is in (errors name its line)
 
     def circuit(self):
         from .circuit import Circuit
@@ -94,10 +96,29 @@ class Target:
                 raise PvgraphError(f"{self.spec}: the builder does not take the options "
                                    f"{sorted(self.options)}: {exc}") from None
             raise
+        except PvgraphError as exc:
+            where = _line_in(exc.__traceback__, self.source)
+            if where is None:
+                raise
+            raise PvgraphError(f"{where}: {exc}") from None
         if not isinstance(c, Circuit):
             raise PvgraphError(f"{self.spec} returned {type(c).__name__}, not a pvgraph "
                                f"Circuit")
         return c
+
+
+def _line_in(tb, source: str | None) -> str | None:
+    """``"FILE, line N (in FUNCTION)"``: the last line of ``source`` in a traceback."""
+    if source is None:
+        return None
+    source = os.path.realpath(source)
+    found = None
+    while tb is not None:
+        code = tb.tb_frame.f_code
+        if os.path.realpath(code.co_filename) == source:
+            found = f"{os.path.relpath(source)}, line {tb.tb_lineno} (in {code.co_name})"
+        tb = tb.tb_next
+    return found
 
 
 def _import_file(path: str):
@@ -177,7 +198,8 @@ def load_target(spec: str, options: dict | None = None) -> Target:
                            f"returning one")
     user = {k: v for k, v in options.items() if k in _accepted(obj, options)}
     return Target(spec, obj, tuple(getattr(obj, "variables", ())), getattr(obj, "t_end", None),
-                  user, (inspect.getdoc(obj) or "").split("\n")[0])
+                  user, (inspect.getdoc(obj) or "").split("\n")[0],
+                  getattr(module, "__file__", None))
 
 
 def _accepted(func, options) -> set:
@@ -220,25 +242,18 @@ def _target(args) -> Target:
     return target
 
 
-def _aliases(circuit) -> dict:
-    return circuit.port_aliases()
-
-
-def check_names(system, names, aliases=None, what: str = "--var") -> list[str]:
-    """The names as the system knows them; an unknown name raises with close matches."""
-    aliases = aliases or {}
-    pool = list(system.all_names()) + list(aliases)
+def check_names(system, names, what: str = "--var") -> list[str]:
+    """The canonical names of ``names`` (:meth:`System.resolve_name`: exposed-port names
+    resolve to the variable they stand for); an unknown name raises with close matches."""
     out = []
     for name in names:
-        real = aliases.get(name, name)
         try:
-            system.unit(real)
+            out.append(system.resolve_name(name))
         except KeyError:
-            close = difflib.get_close_matches(name, pool, n=3, cutoff=0.6)
+            close = system.close_names(name)
             hint = f"; did you mean {', '.join(map(repr, close))}?" if close else "."
             raise PvgraphError(f"{what} {name!r} is not a variable or output of "
                                f"{system.name!r}{hint} List them with pvgraph vars.") from None
-        out.append(real)
     return out
 
 
@@ -252,7 +267,7 @@ def cmd_simulate(args) -> int:
     circuit = target.circuit()
     system = circuit.compile()
     shown = args.var or list(target.variables) or _default_variables(system)
-    names = check_names(system, shown, _aliases(circuit))
+    check_names(system, shown)       # fails before the run; results keep the names as given
     t_end = args.t_end if args.t_end is not None else (target.t_end or DEFAULT_T_END)
     if not (math.isfinite(t_end) and t_end > 0):
         raise PvgraphError(f"--t-end must be a finite time > 0 s, got {t_end}")
@@ -262,15 +277,15 @@ def cmd_simulate(args) -> int:
         print(f"pvgraph simulate: {target.spec}: {exc}", file=sys.stderr)
         return 1
     width = max(len(n) for n in shown)
-    for label, n in zip(shown, names):
-        print(f"{label:{width}s}  final {_display(sol.final(n), sol.unit(n), args.si)}")
+    for n in shown:
+        print(f"{n:{width}s}  final {_display(sol.final(n), sol.unit(n), args.si)}")
     print(f"steps {sol.stats.get('nsteps')}, residual evaluations {sol.stats.get('nre')}")
     if args.csv:
-        sol.to_csv(args.csv, names)
+        sol.to_csv(args.csv, shown)
         print(f"wrote {args.csv} (SI units, named in its header)")
     if args.plot:
         from .plotting import plot_solution
-        print(f"wrote {plot_solution(sol, names, args.plot, si=args.si)}")
+        print(f"wrote {plot_solution(sol, shown, args.plot, si=args.si)}")
     return 0
 
 
@@ -290,7 +305,7 @@ def cmd_vars(args) -> int:
         kind = "state" if system.differential[k] else "algebraic"
         rows.append((n, system.units[k], kind, system.descriptions[k] if system.descriptions
                      else ""))
-    exposed = _aliases(circuit)
+    exposed = system.exposed_names()
     for n, (coef, tgt, off) in sorted(system.aliases.items()):
         kind = f"= {tgt}" if tgt is not None and coef == 1.0 and off == 0.0 else \
             (f"= {coef:g} * {tgt}" if tgt is not None else f"fixed {off:g}")
@@ -298,12 +313,13 @@ def cmd_vars(args) -> int:
     for n, (unit, desc) in sorted((n, v[:2]) for n, v in system.observed.items()):
         rows.append((n, unit, "output", desc or ""))
     for alias, real in sorted(exposed.items()):
-        rows.append((alias, system.unit(real), f"= {real} (exposed port)", ""))
+        rows.append((alias, system.unit(real), f"alias of {real} (exposed port)", ""))
     if args.grep:
         rows = [r for r in rows if args.grep.lower() in r[0].lower()]
     width = max((len(r[0]) for r in rows), default=10)
     print(f"{system.name}: {system.n} unknowns ({int(system.differential.sum())} states), "
-          f"{len(system.aliases)} eliminated, {len(system.observed)} outputs; units SI")
+          f"{len(system.aliases)} eliminated, {len(system.observed)} outputs, {len(exposed)} "
+          f"exposed-port names; units SI")
     for name, unit, kind, desc in rows:
         print(f"{name:{width}s}  [{unit}]  {kind}{'  ' + desc if desc else ''}")
     return 0
@@ -519,10 +535,9 @@ def cmd_sweep(args) -> int:
         return 0
     system = circuit.compile()
     outputs = tuple(args.var or target.variables or _default_variables(system))
-    check_names(system, outputs, _aliases(circuit))
+    resolved = check_names(system, outputs)
     t_end = args.t_end if args.t_end is not None else (target.t_end or DEFAULT_T_END)
     cases = _sweep_cases(args, valid)
-    resolved = check_names(system, outputs, _aliases(circuit))
     # compiled once per worker; each case runs with its values as runtime parameters
     from .analysis.sweep import CompiledRun
     run = functools.partial(_noted_case, CompiledRun(
@@ -566,18 +581,23 @@ def _format_table(result, units, si) -> str:
 # linearize
 
 def _check_outputs(system, names) -> None:
-    linear = list(system.index) + list(system.aliases)
+    """Every name is a variable of the system (not a derived output): a linear model's output."""
     for name in names:
-        if name in system.index or name in system.aliases:
+        try:
+            real = system.resolve_name(name)
+        except KeyError:
+            real = None
+        if real is not None and real not in system.observed:
             continue
-        if name in system.observed:
+        if real is not None:
             raise PvgraphError(f"--output {name!r} is a derived output (computed after the "
                                f"solve); linearise one of the variables it is computed from, "
                                f"e.g. a port pressure or flow")
-        close = difflib.get_close_matches(name, linear, n=3, cutoff=0.6)
+        close = [n for n in system.close_names(name) if n not in system.observed]
         hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
         raise PvgraphError(f"--output {name!r} is not a variable of the circuit{hint} (it has "
-                           f"{len(linear)} variables, e.g. {', '.join(linear[:3])})")
+                           f"{system.n + len(system.aliases)} variables, e.g. "
+                           f"{', '.join(system.names[:3])})")
 
 
 def _frequency_response(lm, freq_hz, output: int, input: int = 0):
@@ -610,7 +630,8 @@ def cmd_linearize(args) -> int:
     system = circuit.compile()
     if not args.output:
         raise PvgraphError("give at least one --output VARIABLE (see pvgraph vars)")
-    outputs = check_names(system, args.output, _aliases(circuit), "--output")
+    outputs = list(args.output)      # exposed-port names stay as given (System.resolve_name)
+    check_names(system, outputs, "--output")
     _check_outputs(system, outputs)
 
     def build(u):
@@ -691,7 +712,11 @@ def _add_sweep_backend(w) -> None:
     w.add_argument("--resume", action="store_true",
                    help="keep the finished cases recorded in OUT/cases.jsonl and run the rest")
     w.add_argument("--timeout", type=float, metavar="SECONDS",
-                   help="stop a case after this wall time and record it as timed out")
+                   help="stop a case after this wall time and record it as timed out. Dask: "
+                        "on the local cluster the sweep starts, the worker running a late "
+                        "case is restarted; on a --scheduler cluster the case is cancelled "
+                        "but runs on in its worker until it returns (Dask cannot stop a "
+                        "running task)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -795,6 +820,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _show_warning(command, message, category, filename, lineno, file=None, line=None):
+    """pvgraph's own warnings as one plain line; other libraries' as Python prints them."""
+    from .errors import PlausibilityWarning
+    from .system import RecompileWarning
+    if issubclass(category, (PlausibilityWarning, RecompileWarning)):
+        print(f"pvgraph {command}: warning: {message}", file=file or sys.stderr)
+    else:
+        print(warnings.formatwarning(message, category, filename, lineno, line),
+              file=file or sys.stderr, end="")
+
+
 def main(argv=None) -> int:
     try:
         parser = build_parser()
@@ -803,7 +839,10 @@ def main(argv=None) -> int:
         return 2
     args = parser.parse_args(argv)
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            if argv is None:    # the command's own process (a caller may record warnings)
+                warnings.showwarning = functools.partial(_show_warning, args.command)
+            return args.func(args)
     except PvgraphError as exc:
         print(f"pvgraph {args.command}: error: {exc}", file=sys.stderr)
         return 2

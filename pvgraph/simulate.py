@@ -25,7 +25,9 @@ class Solution:
 
     ``sol["pvb.main_spool.flange.x"]`` is the array over ``sol.t``; ``sol.der(name)`` its time
     derivative; derived outputs (an orifice's ``q``, a spool's flow force) are addressed the same
-    way. ``sol.unit(name)`` gives the unit.
+    way. ``sol.unit(name)`` gives the unit. A name through an exposed port of a sub-circuit
+    (``sol["valve.P.p"]``, see :meth:`System.exposed_names`) gives exactly the values of the
+    inner variable it stands for.
     """
 
     def __init__(self, system: System, t, y, yp, *, events=(), stats=None, mode_log=None,
@@ -42,7 +44,8 @@ class Solution:
 
     @property
     def names(self) -> list[str]:
-        """Every name that can be looked up."""
+        """Every variable and output once, by its canonical name (:meth:`System.all_names`);
+        the exposed-port names that are also accepted are ``system.exposed_names()``."""
         return self.system.all_names()
 
     def _modes_per_time(self):

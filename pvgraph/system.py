@@ -268,23 +268,75 @@ class System:
         return self._alias_values
 
     def resolve(self, name: str):
-        """``(coef, index or None, offset)`` with ``name = coef * y[index] + offset``."""
+        """``(coef, index or None, offset)`` with ``name = coef * y[index] + offset``.
+
+        ``name`` is an unknown, an eliminated alias or an exposed-port name
+        (:meth:`exposed_names`); an unknown name raises ``KeyError`` with close matches.
+        """
         if name in self.index:
             return 1.0, self.index[name], 0.0
         aliases = self.aliases
         if name in aliases:
             coef, target, off = aliases[name]
             return coef, (None if target is None else self.index[target]), off
+        real = self._exposed().get(name)
+        if real is not None and real not in self.observed:
+            return self.resolve(real)
         raise KeyError(self._unknown(name))
 
+    def resolve_name(self, name: str) -> str:
+        """The canonical name of ``name``: itself for a name of :meth:`all_names`, the inner
+        port variable for an exposed-port name (``"valve.P.p"`` -> ``"valve.spool.P.p"``).
+
+        Every lookup by name (``Solution[...]``, ``sol.der``, operating points, linear models,
+        sweep outputs, the command line) goes through this, so an exposed name gives exactly
+        the values of its canonical variable. An unknown name raises ``KeyError`` with close
+        matches, exposed names included.
+        """
+        if name in self.index or name in self._alias_exprs or name in self.observed:
+            return name
+        real = self._exposed().get(name)
+        if real is None:
+            raise KeyError(self._unknown(name))
+        return real
+
+    def exposed_names(self) -> dict[str, str]:
+        """Names through the exposed ports of sub-circuits, ``{exposed name: canonical name}``.
+
+        A sub-circuit ``valve`` exposing its part's port ``spool.P`` as ``P`` makes
+        ``valve.P.p`` and ``valve.P.q`` names of ``valve.spool.P.p`` and ``valve.spool.P.q``
+        (at any depth; a signal port's exposed name is the port itself). They are not in
+        :meth:`all_names` (each variable is listed once, there, under its canonical name) but
+        every lookup accepts them (:meth:`resolve_name`). Empty for a system not compiled
+        from a circuit.
+        """
+        return dict(self._exposed())
+
+    def _exposed(self) -> dict[str, str]:
+        names = self._lazy.get("exposed_names")
+        if names is None:
+            raw = self._circuit.port_aliases() if self._circuit is not None else {}
+            known = (self.index, self._alias_exprs, self.observed)
+            names = {alias: real for alias, real in sorted(raw.items())
+                     if not any(alias in k for k in known) and any(real in k for k in known)}
+            self._lazy["exposed_names"] = names
+        return names
+
+    def close_names(self, name: str, n: int = 3) -> list[str]:
+        """Up to ``n`` names close to a misspelled ``name``: variables, aliases, derived
+        outputs and exposed-port names (the suggestions of every unknown-name error)."""
+        pool = list(self.index) + list(self._alias_exprs) + list(self.observed) + \
+            list(self._exposed())
+        return difflib.get_close_matches(name, pool, n=n, cutoff=0.6)
+
     def _unknown(self, name):
-        import difflib
-        pool = list(self.index) + list(self._alias_exprs) + list(self.observed)
-        close = difflib.get_close_matches(name, pool, n=3)
+        close = self.close_names(name)
         hint = f" Close matches: {close}." if close else ""
         return f"{self.name}: no variable or output named {name!r}.{hint}"
 
     def unit(self, name: str) -> str:
+        """The unit of a variable, alias, derived output or exposed name (SI)."""
+        name = self.resolve_name(name)
         if name in self.observed:
             return self.observed[name][0]
         coef, idx, _ = self.resolve(name)
@@ -293,7 +345,13 @@ class System:
         return self.units[idx]
 
     def all_names(self) -> list[str]:
-        """Every addressable name: unknowns, eliminated aliases and derived outputs."""
+        """Every variable once, by its canonical name: the unknowns (in the order of ``y``),
+        the eliminated aliases, the derived outputs.
+
+        Code that walks the variables (power per component, tables, CSV columns) relies on
+        each being listed once; exposed-port names, which are second names of some of them,
+        are in :meth:`exposed_names` and accepted by every lookup.
+        """
         return list(self.names) + sorted(self._alias_exprs) + sorted(self.observed)
 
     def evaluate_observed(self, t, Y, YP, modes_per_time):
@@ -478,6 +536,7 @@ class System:
         cols = self._param_columns(names)
         gy = np.zeros(self.n)
         gp = np.zeros(len(self.parameters))
+        name = self.resolve_name(name)
         if name in self.index:
             gy[self.index[name]] = 1.0
             return gy, gp[cols]

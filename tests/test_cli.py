@@ -6,6 +6,7 @@ of flow with spool travel, the return-line pressure against its conductance.
 """
 
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -325,7 +326,7 @@ def test_vars_lists_names_units_and_exposed_ports(rig_file, capsys):
     rows = {line.split()[0]: line for line in out.splitlines()[1:]}
     assert "[Pa]" in rows["bench.node.port.p"] and "state" in rows["bench.node.port.p"]
     assert "[m^3/s]" in rows["bench.orifice.q"] and "output" in rows["bench.orifice.q"]
-    assert "= bench.node.port.p (exposed port)" in rows["bench.P.p"]
+    assert "alias of bench.node.port.p (exposed port)" in rows["bench.P.p"]
     # an exposed port is a valid name everywhere, and close matches include it
     assert main(["simulate", f"{rig_file}:nested", "--t-end", "1", "--var", "bench.P.p"]) == 0
     p, _ = _final_values(capsys.readouterr().out)["bench.P.p"]
@@ -514,3 +515,47 @@ def test_validate_records_carry_roles(tmp_path, capsys):
     r = records[("sweep-5", "Q_total")]
     assert r["error"] == pytest.approx(r["simulated"] - r["measured"], abs=1e-3)
     assert abs(r["error"]) <= 1.0                                      # flow meter +-1 L/min
+
+
+def test_a_builder_error_names_the_line_of_the_users_file(tmp_path, capsys):
+    path = tmp_path / "wrong_unit.py"
+    path.write_text("from pvgraph import Circuit\n"
+                    "from pvgraph.components import VolumeNode\n"
+                    "\n"
+                    "\n"
+                    "def build():\n"
+                    "    c = Circuit('c')\n"
+                    "    c.add('node', VolumeNode(V='0.5 bar'))\n"
+                    "    return c\n")
+    assert main(["simulate", f"{path}:build"]) == 2
+    err = capsys.readouterr().err
+    assert "wrong_unit.py, line 7 (in build): invalid parameters for VolumeNode" in err
+    assert "V = '0.5 bar' is a pressure, but V is a volume [m^3]" in err
+
+
+def test_the_command_prints_its_warnings_as_one_plain_line(tmp_path, monkeypatch, capsys):
+    """A closed loop of volumes floats: the command warns in one line naming the circuit,
+    not with Python's file-and-source-line format pointing into pvgraph."""
+    path = tmp_path / "ring.py"
+    path.write_text("from pvgraph import Circuit\n"
+                    "from pvgraph.components import Orifice, VolumeNode\n"
+                    "\n"
+                    "\n"
+                    "def build():\n"
+                    "    c = Circuit('ring')\n"
+                    "    v1 = c.add('v1', VolumeNode(V='1 L', p0='42 bar'))\n"
+                    "    v2 = c.add('v2', VolumeNode(V='1 L'))\n"
+                    "    o1 = c.add('o1', Orifice(A='1 mm^2'))\n"
+                    "    o2 = c.add('o2', Orifice(A='1 mm^2'))\n"
+                    "    c.connect(v1.port, o1.a, o2.b)\n"
+                    "    c.connect(o1.b, v2.port, o2.a)\n"
+                    "    return c\n")
+    monkeypatch.setattr(sys, "argv", ["pvgraph", "simulate", f"{path}:build", "--t-end",
+                                      "0.2", "--var", "v2.port.p"])
+    assert main() == 0
+    captured = capsys.readouterr()
+    assert captured.err.startswith("pvgraph simulate: warning: circuit 'ring': the hydraulic "
+                                   "network of o1, o2, v1, v2 has no pressure reference")
+    assert "cli.py" not in captured.err and "PlausibilityWarning" not in captured.err
+    p, unit = _final_values(captured.out)["v2.port.p"]
+    assert unit == "bar" and p == pytest.approx(21.0, rel=1e-2)   # 42 bar shared by 2 L

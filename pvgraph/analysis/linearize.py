@@ -78,10 +78,16 @@ class LinearModel:
     def _idx(self, key, names, what):
         if isinstance(key, (int, np.integer)):
             return int(key)
-        try:
+        if key in names:
             return names.index(key)
-        except ValueError:
-            raise KeyError(f"no {what} named {key!r}; the {what}s are {names}") from None
+        system = self.op.system if self.op is not None else None
+        if system is not None and what != "input":   # an exposed name of an output variable
+            try:
+                real = system.resolve_name(key)
+                return [system.resolve_name(n) for n in names].index(real)
+            except (KeyError, ValueError):
+                pass
+        raise KeyError(f"no {what} named {key!r}; the {what}s are {names}")
 
     def poles(self) -> np.ndarray:
         """Eigenvalues of ``A``, sorted by decreasing real part (the dominant ones first)."""
@@ -245,7 +251,9 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
     inputs : mapping name -> array (n,)
         Residual sensitivity ``dF/du`` of each input (see :func:`input_sensitivity`).
     outputs : names
-        Any unknown or eliminated alias of the system (states, algebraic variables).
+        Any unknown or eliminated alias of the system (states, algebraic variables), or an
+        exposed-port name of one (:meth:`System.exposed_names`); the model keeps the names as
+        given, and its methods also accept the other name of the same variable.
     """
     inputs = dict(inputs or {})
     n = system.n
