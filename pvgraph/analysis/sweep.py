@@ -40,8 +40,14 @@ Design
   cases are written as above and :class:`SweepInterrupted` (a ``KeyboardInterrupt``) carries the
   partial result. ``resume=True`` reads ``cases.jsonl`` and runs only the cases not yet finished
   successfully (failed and timed-out cases run again).
-- **Bad cases.** ``timeout=seconds`` stops a case that runs longer (status ``"timeout"``; serial
-  and process backends, on systems with ``SIGALRM``). A ``SystemExit`` inside ``run`` is a
+- **Bad cases.** ``timeout=seconds`` stops a case that runs longer (status ``"timeout"``).
+  Serial and process backends: ``SIGALRM`` interrupts the case where it runs (not on Windows).
+  Dask: the limit is kept on this side, with only as many cases in flight as the cluster has
+  worker threads; a late case is recorded and cancelled, and on the local cluster the sweep
+  starts, the worker process running it is restarted (that stops it; its cached compiled
+  systems are rebuilt). Dask cannot stop a running Python function on a cluster it was given
+  (``client=``): there the case runs on in its worker until it returns, and that thread is
+  left out of the count of free threads. A ``SystemExit`` inside ``run`` is a
   failed case, not the end of the sweep. An output that is NaN or infinite marks the case
   ``"nonfinite"``. ``check(case)`` runs on every case before any case runs: invalid parameter
   values raise :class:`SweepError` naming the cases, and nothing runs.
@@ -74,6 +80,7 @@ from __future__ import annotations
 
 import csv
 import difflib
+import functools
 import itertools
 import json
 import math
@@ -501,7 +508,7 @@ def _run_process(run, todo, cases, workers, report, timeout) -> None:
         report(_run_isolated(run, i, cases[i], timeout))
 
 
-def _run_dask(run, todo, cases, workers, client, report) -> None:
+def _run_dask(run, todo, cases, workers, client, report, timeout=None) -> None:
     try:
         import distributed
     except ImportError:
@@ -525,8 +532,13 @@ def _run_dask(run, todo, cases, workers, client, report) -> None:
     elif not isinstance(client, distributed.Client):
         raise SweepError(f"client must be a distributed.Client or a scheduler address string, "
                          f"got {type(client).__name__}")
+    futures = []
     try:
-        futures = [client.submit(_run_case, run, i, cases[i], pure=False) for i in todo]
+        if timeout is not None:
+            _run_dask_timed(distributed, client, run, todo, cases, report, timeout,
+                            restart=len(owned) == 2, futures=futures)
+            return
+        futures[:] = [client.submit(_run_case, run, i, cases[i], pure=False) for i in todo]
         index = {f.key: i for i, f in zip(todo, futures)}
         for fut in distributed.as_completed(futures, loop=client.loop):
             i = index[fut.key]
@@ -535,9 +547,124 @@ def _run_dask(run, todo, cases, workers, client, report) -> None:
             except Exception as exc:  # the worker died (KilledWorker), or (de)serialisation
                 report(_failure(i, cases[i], exc))
             fut.release()
+    except BaseException:
+        if not owned:                 # the user's cluster: take back what has not finished
+            client.cancel([f for f in futures if not f.done()])
+        raise
     finally:
         for obj in owned:
             obj.close()
+
+
+#: [s] how often a timed Dask sweep looks at its running cases
+DASK_POLL = 0.02
+
+
+#: [s] the longest a timed Dask sweep waits for a worker to warm up
+DASK_WARM_MAX = 60.0
+
+
+def _ready(run) -> bool:
+    """A worker's warm-up: receiving ``run`` imports the modules it comes from, and a part of
+    it with a ``prepare()`` method (:class:`CompiledRun`) compiles its circuit."""
+    parts = [run]
+    while parts:
+        obj = parts.pop()
+        if isinstance(obj, functools.partial):
+            parts.extend([obj.func, *obj.args, *obj.keywords.values()])
+        elif callable(getattr(obj, "prepare", None)):
+            obj.prepare()
+    return True
+
+
+def _warm_workers(client, run, warm: set, limit: float = DASK_WARM_MAX) -> dict:
+    """Warm every worker not in ``warm`` (:func:`_ready`), waiting at most ``limit`` seconds,
+    so that a fresh worker's imports and compilation are not counted in the time of its first
+    case (they are not in the process backend, whose workers start from this process); a
+    failing warm-up is left to the cases to report. Returns the workers' thread counts."""
+    threads = client.nthreads()
+    new = [w for w in threads if w not in warm]
+    futs = [client.submit(_ready, run, workers=[w], pure=False) for w in new]
+    deadline = time.monotonic() + limit
+    while futs and not all(f.done() for f in futs) and time.monotonic() < deadline:
+        time.sleep(DASK_POLL)
+    for f in futs:
+        f.release()
+    warm.update(new)
+    return threads
+
+
+def _run_dask_timed(distributed, client, run, todo, cases, report, timeout, *, restart,
+                    futures) -> None:
+    """Dask with a time limit per case, measured on this side from the case's submission.
+
+    Every worker first receives ``run`` (its imports are not a case's time); then only as
+    many cases are in flight as the cluster has free worker threads, so a submitted case
+    starts at once and its time is its run time. A case past its limit is recorded as
+    ``"timeout"`` at once and its future cancelled. Dask cannot interrupt a Python function
+    that is running: on the local cluster started for the sweep (``restart``) the worker
+    process running the case is restarted in the background, which stops it, and its threads
+    count again once it is back; on a cluster the caller gave, the task runs on in its worker
+    thread until it returns, and that thread is no longer counted (one is always kept).
+    """
+    warm: set = set()
+    slots = sum(_warm_workers(client, run, warm).values())
+    held = 0                  # threads of restarting workers, or holding a cancelled task
+    restarting: list = []     # (background thread, threads it holds)
+    pending = list(todo)
+    running: dict = {}        # future -> (case index, start time)
+    while pending or running:
+        for item in [r for r in restarting if not r[0].is_alive()]:
+            restarting.remove(item)
+            held -= item[1]
+        free = slots - held if restart else max(1, slots - held)
+        while pending and len(running) < free:
+            i = pending.pop(0)
+            fut = client.submit(_run_case, run, i, cases[i], pure=False)
+            futures.append(fut)
+            running[fut] = (i, time.monotonic())
+        finished = [f for f in running if f.done()]
+        for fut in finished:
+            i, _ = running.pop(fut)
+            try:
+                report(fut.result())
+            except Exception as exc:   # the worker died (KilledWorker), or (de)serialisation
+                report(_failure(i, cases[i], exc))
+            fut.release()
+        now = time.monotonic()
+        late = [f for f, (_, t0) in running.items() if now - t0 >= timeout and not f.done()]
+        if late:
+            where = client.processing()
+            stuck = sorted({w for w, keys in where.items() for f in late if f.key in keys})
+            client.cancel(late)
+            note = "" if restart else ("; Dask cannot stop a running task on a cluster the "
+                                       "sweep did not start: it runs on in its worker")
+            for fut in late:
+                i, t0 = running.pop(fut)
+                report(CaseResult(i, dict(cases[i]), {}, TIMEOUT, now - t0, "CaseTimeout",
+                                  f"stopped after the time limit of {timeout:g} s{note}"))
+            if restart and pending:      # (at the end, closing the cluster stops them)
+                threads = client.nthreads()
+                n = sum(threads.get(w, 1) for w in stuck)
+                worker = threading.Thread(target=_restart_workers, daemon=True,
+                                          args=(client, stuck, run, warm))
+                worker.start()
+                restarting.append((worker, n))
+                held += n
+            elif not restart:
+                held += len(late)
+        if not finished and not late:
+            time.sleep(DASK_POLL)
+
+
+def _restart_workers(client, workers, run, warm) -> None:
+    """Restart the worker processes ``workers`` (stopping what they run) and warm them up;
+    runs in a background thread, so a failure here only leaves their threads unused."""
+    try:
+        client.restart_workers(workers, raise_for_error=False)
+        _warm_workers(client, run, warm)
+    except Exception:           # the cluster is closing, or a worker did not come back
+        pass
 
 
 def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, Any]], *,
@@ -578,7 +705,8 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
         Keep the successful cases recorded in ``out/cases.jsonl`` (they must be the same cases)
         and run only the others.
     timeout : float, optional
-        Wall-time limit of one case [s]; a case over it is recorded with status ``"timeout"``.
+        Wall-time limit of one case [s]; a case over it is recorded with status ``"timeout"``
+        and the sweep goes on (how each backend stops it: see the module docstring).
     check : callable, optional
         ``check(case)`` raises (e.g. :class:`~pvgraph.ParameterError`) for invalid parameter
         values; it runs on every case before any case runs.
@@ -613,9 +741,9 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
     if timeout is not None:
         if not (isinstance(timeout, numbers.Real) and math.isfinite(timeout) and timeout > 0):
             raise SweepError(f"timeout must be a positive number of seconds, got {timeout!r}")
-        if backend == "dask" or not hasattr(signal, "setitimer"):
-            raise SweepError(f"timeout= needs the serial or process backend on a system with "
-                             f"SIGALRM (backend is {backend!r})")
+        if backend != "dask" and not hasattr(signal, "setitimer"):
+            raise SweepError(f"timeout= needs SIGALRM for backend {backend!r} (not on this "
+                             f"system); use backend='dask'")
     if resume and out is None:
         raise SweepError("resume=True needs out= (the folder holding cases.jsonl)")
     param_names = list(cases[0])
@@ -660,7 +788,7 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
         elif backend == "process":
             _run_process(run, todo, cases, workers, report, timeout)
         else:
-            _run_dask(run, todo, cases, workers, client, report)
+            _run_dask(run, todo, cases, workers, client, report, timeout)
     except KeyboardInterrupt:
         if log is not None:
             log.close()
@@ -825,6 +953,16 @@ class CompiledRun:
             entry = _COMPILED[self.key] = {"base": None, "structures": {}, "compilations": 0,
                                            "warm": {}}
         return entry
+
+    def prepare(self) -> None:
+        """Compile the circuit in this process now, before the first case (a Dask worker
+        warming up, so that a per-case time limit counts only the cases' own work)."""
+        from .. import solver  # noqa: F401  (what a case imports on its first run)
+        from ..simulate import simulate  # noqa: F401
+        entry = self._cache()
+        if self.circuit is not None and entry["base"] is None:
+            entry["base"] = self._circuit().compile()
+            entry["compilations"] += 1
 
     def compilations(self) -> int:
         """Compilations this object (or its key) caused in this process."""

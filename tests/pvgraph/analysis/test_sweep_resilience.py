@@ -29,6 +29,13 @@ def misbehaving(x):
     return {"y": x * x}
 
 
+def slow_square(x):
+    """y = x^2; x = 1 sleeps 2 s (past the test's limit)."""
+    if x == 1:
+        time.sleep(2.0)
+    return {"y": x * x}
+
+
 def counted(x, folder):
     """y = x^2, leaving a file per call so a test can count the runs; Ctrl-C at x = 3."""
     with open(os.path.join(folder, f"ran-{x}"), "a") as f:
@@ -48,15 +55,33 @@ def _lines(path):
         return [json.loads(line) for line in f]
 
 
-@pytest.mark.parametrize("backend", ["serial", "process"])
+def _has_distributed() -> bool:
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+DASK = pytest.param("dask", marks=pytest.mark.skipif(not _has_distributed(),
+                                                      reason="dask.distributed not installed"))
+
+
+@pytest.mark.parametrize("backend", ["serial", "process", DASK])
 def test_exit_nan_and_hang_are_recorded_and_the_rest_run(backend, tmp_path):
+    """The hanging case sleeps 30 s: the sweep ends long before only if the limit works (on
+    Dask, the local cluster's worker running it is restarted)."""
+    t0 = time.perf_counter()
     result = sweep(misbehaving, grid({"x": [0, 1, 2, 3, 4]}), backend=backend, workers=2,
                    timeout=1.0, out=tmp_path)
+    assert time.perf_counter() - t0 < 20.0
     status = [r.status for r in result]
     assert status == ["ok", "failed", "nonfinite", "timeout", "ok"]
     assert result[1].error_type == "SystemExit"
     assert "output(s) y not finite: nan" in result[2].error_message
-    assert result[3].wall_time < 5.0                        # stopped at the limit, not 30 s
+    assert 1.0 <= result[3].wall_time < 5.0                 # stopped at the limit, not 30 s
+    assert result[3].error_type == "CaseTimeout"
+    assert result[3].error_message == "stopped after the time limit of 1 s"
     assert [result[0].outputs["y"], result[4].outputs["y"]] == [0.0, 16.0]
     assert [r.index for r in result.failed] == [1, 2, 3]
     records = _lines(tmp_path / "cases.jsonl")[1:]
@@ -126,6 +151,43 @@ def test_files_get_the_users_umask(tmp_path):
         assert os.stat(tmp_path / name).st_mode & 0o777 == 0o644
 
 
-def test_timeout_needs_a_backend_that_can_stop_a_case():
-    with pytest.raises(SweepError, match="timeout= needs the serial or process backend"):
-        sweep(square, grid({"x": [1.0]}), backend="dask", timeout=1.0)
+def test_dask_timeout_on_a_given_cluster_cancels_and_says_the_task_runs_on(tmp_path):
+    """On a cluster the sweep did not start, a late case is recorded and cancelled; the
+    worker thread it holds is left out, and the next cases still finish on the other one."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, processes=False, threads_per_worker=1,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster, set_as_default=False) as client:
+        t0 = time.perf_counter()
+        result = sweep(slow_square, grid({"x": [0.0, 1.0, 2.0, 3.0]}), backend="dask",
+                       client=client, timeout=0.5, out=tmp_path)
+        assert time.perf_counter() - t0 < 1.8            # not the 2 s the late case sleeps
+    assert [r.status for r in result] == ["ok", "timeout", "ok", "ok"]
+    assert [r.outputs["y"] for r in result.ok] == [0.0, 4.0, 9.0]
+    assert "runs on in its worker" in result[1].error_message
+    late = [r for r in _lines(tmp_path / "cases.jsonl")[1:] if r["index"] == 1]
+    assert len(late) == 1 and late[0]["status"] == "timeout"
+    assert set(late[0]) == {"index", "status", "wall_time", "params", "outputs", "error"}
+    assert late[0]["error"]["type"] == "CaseTimeout"
+
+
+def test_ctrl_c_in_a_dask_sweep_keeps_the_finished_cases(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    seen = []
+
+    def progress(done, total, index):
+        seen.append(index)
+        if done == 2:
+            raise KeyboardInterrupt
+    with distributed.LocalCluster(n_workers=1, processes=False, threads_per_worker=1,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster, set_as_default=False) as client:
+        with pytest.raises(SweepInterrupted) as exc:
+            sweep(square, grid({"x": [0.0, 1.0, 2.0, 3.0]}), backend="dask", client=client,
+                  timeout=5.0, progress=progress, out=tmp_path)
+    partial = exc.value.result
+    assert len(partial) == 2 and partial.n_cases == 4 and not partial.complete
+    assert all(r.outputs["y"] == r.params["x"] ** 2 for r in partial)
+    assert sorted(seen) == sorted(r.index for r in partial)
+    with open(tmp_path / "sweep.json") as f:
+        assert json.load(f)["n_finished"] == 2
