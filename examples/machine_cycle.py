@@ -6,7 +6,8 @@ a 40 kg m^2 inertia through a hydraulic motor and stops it against its cross-por
 valves; then the boom lowers, metered by the counterbalance valve. Prints the LS margin, the
 pressures that the cut-off and the relief valves hold, and the energy delivered where.
 
-Run: ``python examples/machine_cycle.py`` (writes machine_cycle.png).
+Run: ``python examples/machine_cycle.py [outdir]`` (writes machine_cycle.png to outdir, default
+examples/output/).
 """
 
 from __future__ import annotations
@@ -75,7 +76,11 @@ def summarise(sol) -> dict:
     return r
 
 
-def main(outdir=".") -> dict:
+#: where the figure goes unless a folder is given: examples/output/, not the repository root
+OUTPUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "output")
+
+
+def main(outdir=OUTPUT) -> dict:
     sol = run()
     r = summarise(sol)
     print(f"LS margin while lifting: {r['margin_min_bar']:.1f}-{r['margin_max_bar']:.1f} bar "
@@ -94,4 +99,4 @@ def main(outdir=".") -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1] if len(sys.argv) > 1 else OUTPUT)

@@ -125,6 +125,7 @@ def main(outdir: str = OUTPUT, *, verbose: bool = True) -> dict:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="upper left")
     fig.tight_layout()
+    os.makedirs(outdir, exist_ok=True)
     path = os.path.join(outdir, "pvp_bypass_loss.png")
     fig.savefig(path, dpi=120)
     plt.close(fig)

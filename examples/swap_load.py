@@ -78,6 +78,7 @@ def main(outdir=OUTPUT) -> dict:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7)
     fig.tight_layout()
+    os.makedirs(outdir, exist_ok=True)
     fig.savefig(os.path.join(outdir, "swap_load.png"), dpi=100)
     plt.close(fig)
     return results

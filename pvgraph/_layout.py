@@ -37,4 +37,6 @@ def install(package_dir: Path) -> None:
     folders = {f"pvgraph.{name}": root / name for name in SUBPACKAGES
                if not (package_dir / name).exists() and (root / name / "__init__.py").is_file()}
     if folders and not any(isinstance(f, _SourceTreeFinder) for f in sys.meta_path):
-        sys.meta_path.append(_SourceTreeFinder(folders))
+        # first: an installed pvgraph (an editable install of another checkout) must not
+        # lend this checkout its components and circuits
+        sys.meta_path.insert(0, _SourceTreeFinder(folders))

@@ -283,8 +283,11 @@ class Circuit:
         except StructureError as exc:
             loose = [i for i in _pressure_islands(self) if not i["volumes"]]
             if loose:
+                found = str(exc)
+                if "repeats the others" in found:   # the loop's missing reference, not 2 sources
+                    found = found.split(" This happens when")[0]
                 raise StructureError(f"{_no_reference_message(self, loose)}\n(The structural "
-                                     f"check of the compiler: {exc})") from None
+                                     f"check of the compiler: {found})") from None
             raise
         floating = [i for i in _pressure_islands(self) if len(i["volumes"]) > 1]
         if floating:

@@ -298,7 +298,8 @@ def _line_of(text: str, loc) -> int | None:
     for key in loc:
         if isinstance(key, int) or key in ("CircuitEntry", "ComponentEntry"):
             continue
-        pattern = re.compile(r'(?<![\w"])"?' + re.escape(str(key)) + r'"?(?=\s*[=:.\]])')
+        written = json.dumps(str(key))[1:-1]        # as a file writes it: "tank\\n"
+        pattern = re.compile(r'(?<![\w"])"?' + re.escape(written) + r'"?(?=\s*[=:.\]])')
         m = pattern.search(text, pos)
         if m is None:
             break
@@ -316,15 +317,22 @@ class _Loader:
     def fail(self, loc, message, find=None) -> ModelFileError:
         line = _line_of(self.text, find or loc)
         where = f"{self.source}" + (f", line {line}" if line else "")
-        path = ".".join(str(k) for k in loc)
+        path = ".".join(str(k) if str(k).isidentifier() or isinstance(k, int)
+                        else json.dumps(str(k)) for k in loc)
         return ModelFileError(f"{where} ({path}): {message}")
+
+    def add(self, circuit, name, component, loc) -> None:
+        try:
+            circuit.add(name, component)
+        except CircuitError as exc:        # a name that is not an identifier
+            raise self.fail(loc, str(exc)) from None
 
     def node(self, name: str, entry, loc) -> Circuit:
         c = Circuit(name)
         for cname, child in entry.components.items():
             here = loc + ("components", cname)
             if isinstance(child, CircuitEntry):
-                c.add(cname, self.node(cname, child, here))
+                self.add(c, cname, self.node(cname, child, here), here)
                 continue
             try:
                 cls = _resolve_type(child.type, self.known)
@@ -336,7 +344,7 @@ class _Loader:
                 raise self.fail(here + ("params",), str(exc)) from None
             except CircuitError as exc:
                 raise self.fail(here + ("start",), str(exc)) from None
-            c.add(cname, comp)
+            self.add(c, cname, comp, here)
         for k, refs in enumerate(entry.connections):
             try:
                 c.connect(*refs)

@@ -214,6 +214,7 @@ def test_a_loop_with_no_tank_says_there_is_no_pressure_reference():
     assert msg.startswith("circuit 'loop': the hydraulic network of orifice, pump has no "
                           "pressure reference")
     assert "Connect a Tank" in msg
+    assert "two sources fix the same quantity" not in msg      # the compiler's other advice
 
 
 def test_a_closed_loop_of_volumes_warns_that_it_floats():

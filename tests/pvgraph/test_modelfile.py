@@ -97,6 +97,8 @@ def test_the_schema_describes_the_format():
     (("[components.tank]", "[components.tank"), "line 19: not valid TOML"),
     (("format = 1", "format = 2"), "line 2 (format): Input should be 1"),
     (('"port.p" = 1e5', '"port.pp" = 1e5'), "line 13 (components.node.start)"),
+    (("[components.tank]", '[components."tank\\n"]'),
+     'line 19 (components."tank\\n"): circuit \'demo\': component name \'tank\\n\' is not'),
 ])
 def test_errors_name_the_line(change, message):
     with pytest.raises(ModelFileError) as exc:
