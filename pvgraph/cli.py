@@ -296,6 +296,24 @@ def _default_variables(system, limit: int = 8) -> list[str]:
     return (states or list(system.names))[:limit]
 
 
+def _port_description(circuit, name: str) -> str:
+    """``"p at port a (inlet)"`` for a port variable of a leaf component, else ``""``."""
+    from .circuit import Circuit
+    path, _, var = name.rpartition(".")
+    owner, _, port = path.rpartition(".")
+    try:
+        comp = circuit[owner] if owner else None
+    except Exception:         # not a component path: a variable of another kind
+        return ""
+    spec = None if comp is None or isinstance(comp, Circuit) else comp.ports.get(port)
+    if spec is None:
+        return ""
+    d = spec.domain
+    what = f"{var} at port {port}" if var == d.across else \
+        (f"{var} into port {port}" if var == d.through else "")
+    return f"{what} ({spec.description})" if what and spec.description else what
+
+
 def cmd_vars(args) -> int:
     target = _target(args)
     circuit = target.circuit()
@@ -303,17 +321,18 @@ def cmd_vars(args) -> int:
     rows = []
     for k, n in enumerate(system.names):
         kind = "state" if system.differential[k] else "algebraic"
-        rows.append((n, system.units[k], kind, system.descriptions[k] if system.descriptions
-                     else ""))
+        rows.append((n, system.units[k], kind, _port_description(circuit, n) or (
+            system.descriptions[k] if system.descriptions else "")))
     exposed = system.exposed_names()
     for n, (coef, tgt, off) in sorted(system.aliases.items()):
         kind = f"= {tgt}" if tgt is not None and coef == 1.0 and off == 0.0 else \
             (f"= {coef:g} * {tgt}" if tgt is not None else f"fixed {off:g}")
-        rows.append((n, system.unit(n), kind, ""))
+        rows.append((n, system.unit(n), kind, _port_description(circuit, n)))
     for n, (unit, desc) in sorted((n, v[:2]) for n, v in system.observed.items()):
         rows.append((n, unit, "output", desc or ""))
     for alias, real in sorted(exposed.items()):
-        rows.append((alias, system.unit(real), f"alias of {real} (exposed port)", ""))
+        rows.append((alias, system.unit(real), f"alias of {real} (exposed port)",
+                     _port_description(circuit, real)))
     if args.grep:
         rows = [r for r in rows if args.grep.lower() in r[0].lower()]
     width = max((len(r[0]) for r in rows), default=10)

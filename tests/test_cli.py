@@ -327,6 +327,9 @@ def test_vars_lists_names_units_and_exposed_ports(rig_file, capsys):
     assert "[Pa]" in rows["bench.node.port.p"] and "state" in rows["bench.node.port.p"]
     assert "[m^3/s]" in rows["bench.orifice.q"] and "output" in rows["bench.orifice.q"]
     assert "alias of bench.node.port.p (exposed port)" in rows["bench.P.p"]
+    # every row is described, eliminated variables by their component's port declaration
+    assert rows["bench.orifice.a.p"].endswith("= bench.node.port.p  p at port a (inlet)")
+    assert rows["bench.pump.port.q"].endswith("q into port port (node fed by the source)")
     # an exposed port is a valid name everywhere, and close matches include it
     assert main(["simulate", f"{rig_file}:nested", "--t-end", "1", "--var", "bench.P.p"]) == 0
     p, _ = _final_values(capsys.readouterr().out)["bench.P.p"]
