@@ -30,9 +30,9 @@ def misbehaving(x):
 
 
 def slow_square(x):
-    """y = x^2; x = 1 sleeps 2 s (past the test's limit)."""
+    """y = x^2; x = 1 sleeps 3 s (past the test's limit)."""
     if x == 1:
-        time.sleep(2.0)
+        time.sleep(3.0)
     return {"y": x * x}
 
 
@@ -79,7 +79,7 @@ def test_exit_nan_and_hang_are_recorded_and_the_rest_run(backend, tmp_path):
     assert status == ["ok", "failed", "nonfinite", "timeout", "ok"]
     assert result[1].error_type == "SystemExit"
     assert "output(s) y not finite: nan" in result[2].error_message
-    assert 1.0 <= result[3].wall_time < 5.0                 # stopped at the limit, not 30 s
+    assert 0.9 < result[3].wall_time < 5.0                  # stopped at the limit, not 30 s
     assert result[3].error_type == "CaseTimeout"
     assert result[3].error_message == "stopped after the time limit of 1 s"
     assert [result[0].outputs["y"], result[4].outputs["y"]] == [0.0, 16.0]
@@ -161,7 +161,7 @@ def test_dask_timeout_on_a_given_cluster_cancels_and_says_the_task_runs_on(tmp_p
         t0 = time.perf_counter()
         result = sweep(slow_square, grid({"x": [0.0, 1.0, 2.0, 3.0]}), backend="dask",
                        client=client, timeout=0.5, out=tmp_path)
-        assert time.perf_counter() - t0 < 1.8            # not the 2 s the late case sleeps
+        assert time.perf_counter() - t0 < 2.5            # not the 3 s the late case sleeps
     assert [r.status for r in result] == ["ok", "timeout", "ok", "ok"]
     assert [r.outputs["y"] for r in result.ok] == [0.0, 4.0, 9.0]
     assert "runs on in its worker" in result[1].error_message
