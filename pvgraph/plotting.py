@@ -187,7 +187,9 @@ def draw_circuit(circuit, path, *, fmt=None):
     if handles:
         ax.legend(handles=handles, loc="upper right", fontsize=7, frameon=False)
     n_comp = sum(1 for v in nodes.values() if v[1] != "junction")
-    ax.set_title(f"{circuit.name}: {n_comp} components, {len(groups) - 1} sub-circuits",
+    n_sub = len(groups) - 1
+    ax.set_title(f"{circuit.name}: {n_comp} component{'s' * (n_comp != 1)}, {n_sub} "
+                 f"sub-circuit{'s' * (n_sub != 1)}",
                  fontsize=10)
     ax.set_xlim(-0.8, width)
     ax.set_ylim(-height - 0.2, 0.6)
