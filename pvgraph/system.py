@@ -322,14 +322,21 @@ class System:
             self._lazy["exposed_names"] = names
         return names
 
+    def _name_pool(self) -> list[str]:
+        return list(self.index) + list(self._alias_exprs) + list(self.observed) + \
+            list(self._exposed())
+
     def close_names(self, name: str, n: int = 3) -> list[str]:
         """Up to ``n`` names close to a misspelled ``name``: variables, aliases, derived
         outputs and exposed-port names (the suggestions of every unknown-name error)."""
-        pool = list(self.index) + list(self._alias_exprs) + list(self.observed) + \
-            list(self._exposed())
-        return difflib.get_close_matches(name, pool, n=n, cutoff=0.6)
+        return difflib.get_close_matches(name, self._name_pool(), n=n, cutoff=0.6)
 
     def _unknown(self, name):
+        under = sorted(n for n in self._name_pool() if n.startswith(f"{name}."))
+        if under:
+            more = f", ... ({len(under)} in all)" if len(under) > 6 else ""
+            return (f"{self.name}: {name!r} is a component or a port, not a variable; the "
+                    f"names under it: {', '.join(under[:6])}{more}.")
         close = self.close_names(name)
         hint = f" Close matches: {close}." if close else ""
         return f"{self.name}: no variable or output named {name!r}.{hint}"

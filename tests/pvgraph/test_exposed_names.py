@@ -103,6 +103,10 @@ def test_misspelled_exposed_name_suggests_it(system, sol):
     assert "valve.spool.x" in system.close_names("valve.spool.xx")
     with pytest.raises(KeyError, match=r"valve\.spool\.x'"):
         system.resolve_name("valve.spool.xx")
+    # a port (exposed or not) named without its variable lists the variables under it
+    with pytest.raises(KeyError, match=r"'valve\.P' is a component or a port, not a variable; "
+                                       r"the names under it: valve\.P\.p, valve\.P\.q\."):
+        sol["valve.P"]
 
 
 def test_steady_state_start_values_and_sensitivities_take_exposed_names(system):
