@@ -588,6 +588,24 @@ class RigParams(_Params):
                     "always returns to tank in steady state. Identified from the closed-L2 "
                     "tests 1, 4, 7, 10 (Pb measured minus Pb simulated without this line: 2.9, "
                     "3.7, 3.0, 3.3 bar). None: no return line, as in the report")
+    return_hose_K: float | None = Field(
+        None, gt=0.0, le=1e-6,
+        description="Laminar constant of the hose from the junction of L1 and L3 to the point "
+                    "where Pb is measured [m^3/(s Pa)]. Not in the report (B.6 lists the hoses, "
+                    "4.6 the transducers, not where they sit). With L2 closed no flow passes L1, "
+                    "so Pm reads the junction: B.7's closed-L2 points give Pm - Pb = 0.475 bar + "
+                    "0.0435 bar/(L/min) Q_total (15 points, both tables, residuals within 0.2 "
+                    "bar), i.e. this hose carrying the load flow (23 L/(min bar)) and a Pb "
+                    "transducer offset (pb_sensor_offset). None = no hose (the report's rig): "
+                    "L1 and L3 end at node b. circuits.crossval.identify identifies it from the "
+                    "training points")
+    pb_sensor_offset: float = Field(
+        0.0, ge=bar(-3.0), le=bar(3.0),
+        description="Reading minus true pressure of the Pb transducer [Pa]. At zero flow "
+                    "(neutral sweep points, B.7) Pf and Pm agree within 0.06 bar and Pb reads "
+                    "0.47-0.51 bar below them; one offset on Pb explains it (the alternative, Pf "
+                    "and Pm both reading high, predicts the same differences). Within the "
+                    "transducers' +-1 bar (B.7). 0 = ideal transducer (the report)")
     load_flow_model: Literal["laminar", "turbulent"] = Field(
         "laminar",
         description="Flow law of L1/L2/L3 [-] (4.7.2: the measured Q(dp) is linear, so laminar "
