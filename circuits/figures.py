@@ -3,8 +3,6 @@
 ``python -m circuits.figures`` regenerates them (about a minute): the pressure drop over L3
 after the L2 step (report figures 4.41-4.48) for
 
-- ``solenoid_map_steps.png``: the PVE valves on the component library's separable map (the
-  model) against the two-dimensional maps of tables.py;
 - ``lever_mass_steps.png``: the report's lever-equivalent mass 1.569 kg (eq 4.82, kept)
   against the physical 0.157 kg (I / r^2 with the report's own inertia).
 """
@@ -19,7 +17,7 @@ from pvgraph.circuits.plotting import plot_step_comparison
 from .pvg32.parameters import report_tuned, with_values
 from .validation import run_scenario
 
-__all__ = ["variant_traces", "solenoid_map_figure", "lever_mass_figure"]
+__all__ = ["variant_traces", "lever_mass_figure"]
 
 TESTS = ("test-2", "test-3", "test-8", "test-9")
 
@@ -27,14 +25,6 @@ TESTS = ("test-2", "test-3", "test-8", "test-9")
 def variant_traces(variants: dict, tests=TESTS) -> dict:
     """``{test: {label: ScenarioResult}}`` for parameter ``variants`` ``{label: params}``."""
     return {t: {label: run_scenario(t, p) for label, p in variants.items()} for t in tests}
-
-
-def solenoid_map_figure(path: str) -> str:
-    p = report_tuned()
-    tab = p.model_copy(update={"pve": p.pve.model_copy(update={"flow_map": "tables"})})
-    return plot_step_comparison(
-        variant_traces({"separable map (model)": p, "table maps": tab}), path,
-        title="PVE valve maps: dp over L3 after the L2 step")
 
 
 def lever_mass_figure(path: str) -> str:
@@ -47,6 +37,5 @@ def lever_mass_figure(path: str) -> str:
 
 if __name__ == "__main__":
     folder = sys.argv[1] if len(sys.argv) > 1 else os.path.join("docs", "img")
-    for make, name in ((solenoid_map_figure, "solenoid_map_steps.png"),
-                       (lever_mass_figure, "lever_mass_steps.png")):
+    for make, name in ((lever_mass_figure, "lever_mass_steps.png"),):
         print("wrote", make(os.path.join(folder, name)))

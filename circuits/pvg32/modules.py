@@ -39,7 +39,6 @@ from pvgraph import Circuit
 
 from . import tables
 from .friction import LuGreFriction
-from .pwm_valve import MappedPWMValve
 from .parameters import PVG32Params, report_tuned
 
 __all__ = ["build_pvp", "build_pvb", "build_pve", "build_pvg32", "opening_areas"]
@@ -303,11 +302,12 @@ def build_pve(p: PVG32Params | None = None) -> Circuit:
     drain = c.add("drain", Orifice(A=e.drain_orifice_area, **_fluid(p)))
     v4 = c.add("V4", PistonChamber(A=m.spool_area, V0=e.port_a_volume, side=1, beta=beta))
     v5 = c.add("V5", PistonChamber(A=m.spool_area, V0=e.port_b_volume, side=-1, beta=beta))
-    valve = MappedPWMValve if e.flow_map == "tables" else PWMValve
-    nc1 = c.add("NC1", valve(kind="NC", tau=e.nc1.switching_delay, DT0=e.duty_offset))
-    no2 = c.add("NO2", valve(kind="NO", tau=e.no2.switching_delay, DT0=e.duty_offset))
-    nc3 = c.add("NC3", valve(kind="NC", tau=e.nc3.switching_delay, DT0=e.duty_offset))
-    no4 = c.add("NO4", valve(kind="NO", tau=e.no4.switching_delay, DT0=e.duty_offset))
+    # one flow map for all four valves: the library's (figure 4.55's lines; section 6 of
+    # docs/pvg32_model.md says why the two-dimensional reconstruction was retired)
+    nc1 = c.add("NC1", PWMValve(kind="NC", tau=e.nc1.switching_delay, DT0=e.duty_offset))
+    no2 = c.add("NO2", PWMValve(kind="NO", tau=e.no2.switching_delay, DT0=e.duty_offset))
+    nc3 = c.add("NC3", PWMValve(kind="NC", tau=e.nc3.switching_delay, DT0=e.duty_offset))
+    no4 = c.add("NO4", PWMValve(kind="NO", tau=e.no4.switching_delay, DT0=e.duty_offset))
     check_a = c.add("check_A", CheckValve(A=e.check_valve_area,
                                           p_crack=e.check_valve_cracking_pressure, **_fluid(p)))
     check_b = c.add("check_B", CheckValve(A=e.check_valve_area,

@@ -355,9 +355,11 @@ class MainSpoolParams(_Params):
 class SolenoidValveParams(_Params):
     """One PVE on/off solenoid valve, driven by a duty cycle (4.5.4, 4.5.5).
 
-    The duty-cycle-averaged flow is Q = map(DT, |dp|) sign(dp) with the NC or NO map of
-    :mod:`pvgraph.circuits.pvg32.tables` (figure 4.22). The report delays the duty-cycle signal by the
-    switching delay ("time delay implemented in the control", 4.5.5).
+    The duty-cycle-averaged flow is the NC or NO map of
+    :mod:`pvgraph.components.hydraulic.solenoid` (``PWMValve``: figure 4.55's lines at the
+    report's linearisation pressures, orifice scaling in dp), the model's one map
+    (docs/pvg32_model.md section 6). The report delays the duty-cycle signal by the switching
+    delay ("time delay implemented in the control", 4.5.5).
     """
 
     kind: Literal["NC", "NO"] = Field(
@@ -458,13 +460,6 @@ class PVEParams(_Params):
                     "figure 4.22: 13 V at 50 degC); informational. The rig ran at the identified "
                     "11.5 V (4.7.3); the report gives no map at that voltage, so the 13 V map is "
                     "used (docs/pvg32_model.md, section 6)")
-    flow_map: Literal["separable", "tables"] = Field(
-        "separable",
-        description="Flow map of NC1-NO4 [-]: 'separable' = Q_ref(DT) sqrt(dp/dp_ref) of "
-                    "pvgraph.components.hydraulic.solenoid (figure 4.55's lines at the report's "
-                    "linearisation pressures, the gains of its linear model 4.8-4.9); 'tables' = "
-                    "the two-dimensional maps of pvgraph.circuits.pvg32.tables (also figure 4.56), "
-                    "pvgraph.circuits.pvg32.pwm_valve. docs/pvg32_model.md section 6 compares them")
 
     @property
     def supply_orifice_area(self) -> float:
