@@ -454,6 +454,14 @@ class PVEParams(_Params):
                     "offset - gain e, both clipped to [0, 1]. CHOICE: eq 4.115 gives the + sign "
                     "to port B, which with eq 4.86/4.93 (P4 pushes +x_m) is positive feedback; "
                     "the sign is assigned so the loop is stable (as the linear model 4.142 does)")
+    delay_stages: int = Field(
+        1, ge=1, le=16,
+        description="Stages n of each valve's switching delay [-]: the duty-cycle signal passes "
+                    "n first-order lags of delay/n in series (4.5.5's pure delay of 20 ms NC, "
+                    "3 ms NO, as an Erlang chain: the same mean delay, phase -n atan(w tau/n), "
+                    "the pure delay's -w tau as n grows; monotone, so the duty cycle stays in "
+                    "[0, 1]). 1 = one lag (the model; the linear model 4.8.2 also uses lags). "
+                    "docs/pvg32_model.md section 6 shows the effect of 4 stages")
     map_supply_voltage: float = Field(
         13.0, gt=0.0, le=50.0,
         description="Supply voltage at which the solenoid flow maps were made [V] (4.5.4, "

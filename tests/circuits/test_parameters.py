@@ -320,3 +320,37 @@ def test_rig_operating_point_of_the_pve_valves():
         assert 0.0 <= op[f"pvg.pve.{v}.dp"] < bar(4.0)
     for v in ("NC1", "NC3"):
         assert 0.0 < op[f"pvg.pve.{v}.dp"] < bar(13.5)
+
+
+@pytest.mark.parametrize("stages", [1, 4])
+def test_switching_delay_as_a_chain_of_lags(stages):
+    """pve.delay_stages = n: the duty cycle reaches the valve through n lags of delay / n (an
+    Erlang delay: mean delay 20 ms for the NC, 4.5.5). A duty-cycle step from 28.4 % follows
+    1 - exp(-t/theta) sum_{k<n} (t/theta)^k / k!, theta = delay / n."""
+    from pvgraph import Circuit
+    from pvgraph.circuits.pvg32.modules import _delay_chain, build_pve
+    from pvgraph.components.hydraulic import Tank
+    from pvgraph.components.hydraulic.solenoid import PWMValve
+    from pvgraph.components.signal.sources import Constant
+    from pvgraph.simulate import simulate
+
+    delay, d0, d1 = 0.020, 0.284, 0.6
+    c = Circuit("chain")
+    valve = c.add("NC1", PWMValve(kind="NC", tau=delay / stages, DT0=d0))
+    hi, lo = c.add("hi", Tank(p0=bar(13.5))), c.add("lo", Tank(p0=bar(5.0)))
+    c.connect(hi.port, valve.a)
+    c.connect(lo.port, valve.b)
+    u = c.add("u", Constant(k=d1))
+    c.connect(u.y, _delay_chain(c, "NC1", delay, stages, d0, valve.DT))
+    t = np.array([0.005, 0.020, 0.060])
+    sol = simulate(c.compile(), t[-1], rtol=1e-9, atol=1e-12, t_eval=t)
+    theta = delay / stages
+    erlang = 1.0 - np.exp(-t / theta) * sum((t / theta) ** k / math.factorial(k)
+                                            for k in range(stages))
+    assert np.asarray(sol["NC1.d"]) == pytest.approx(d0 + (d1 - d0) * erlang, abs=2e-5)
+    # in the PVE: n - 1 lags in front of each of the four valves, none for one stage
+    p = report_tuned()
+    pve = build_pve(p.model_copy(update={"pve": p.pve.model_copy(
+        update={"delay_stages": stages})}))
+    lags = [n for n in pve.components if "_delay" in n]
+    assert len(lags) == 4 * (stages - 1)
