@@ -557,8 +557,9 @@ def format_cross_validation(cv: CrossValidation) -> str:
                          f"{cells[2]:>8s} {cells[3]:>8s} {cells[4]:>8s}")
         for label, (ok, total, rows) in judge(cv.records, g).items():
             if not total:
-                lines.append(f"  n/a   held-out {label}: none held out (the held-out "
-                             f"configuration's load law is its own tests' Q/dp)")
+                why = ("the held-out configuration's load law is its own tests' Q/dp"
+                       if g == "load" else "no such point in the folds run")
+                lines.append(f"  n/a   held-out {label}: none held out ({why})")
                 continue
             worst = max(e for _, e, _ in rows)
             lines.append(f"  {'PASS' if ok == total else 'miss'}  held-out {label}: "

@@ -116,3 +116,8 @@ def test_identify_rejects_an_unknown_load_law():
     from pvgraph.errors import PvgraphError
     with pytest.raises(PvgraphError, match="load_law"):
         X.identify(all_scenarios(), load_law="turbulent")
+
+
+def test_cross_validate_runs_only_the_folds_asked_for():
+    cv = X.cross_validate(("voltage", "load"), workers=1, folds=["no such fold"])
+    assert cv.folds == [] and cv.records == []
