@@ -104,8 +104,12 @@ def _cross_validate(args) -> None:
     from pvgraph.circuits import crossval as X
     print("\nCross-validation: every data-derived parameter (load laws, supply voltage, A_H "
           "shape, return line, pump flow) re-identified without the held-out group\n")
-    cv = X.cross_validate(workers=args.workers or 2,
-                          progress=_progress(14, "cross-validating"))
+    folds = getattr(args, "fold", None)
+    cv = X.cross_validate(workers=args.workers or 2, folds=folds,
+                          progress=_progress(len(folds) if folds else 14, "cross-validating"))
+    if not cv.folds:
+        raise PvgraphError(f"--fold {folds}: no such fold; folds are named like 'U = 4.6 V', "
+                           f"'L1 small, L3 small', 'sweep (L3 large, L2 closed)'")
     print(X.format_cross_validation(cv))
     path = os.path.join(args.out, "cross_validation.json")
     summary = {g: {label: {"passed": ok, "total": total}
@@ -505,6 +509,9 @@ def _configure_validate(v) -> None:
                         "scenarios at a time (by input voltage, by load configuration) and "
                         "report the held-out errors (steady states; a few minutes on 2 "
                         "cores); writes OUT/cross_validation.json")
+    v.add_argument("--fold", action="append", metavar="KEY",
+                   help="with --cross-validate: run only this fold (repeatable), e.g. "
+                        "'U = 4.6 V' or 'L1 large, L3 large' (a quick look at one group)")
 
 
 def _configure_simulate(parser) -> None:

@@ -16,6 +16,9 @@ Identification (:func:`identify`)
     Everything the model takes from the lab data is re-identified from a training set of
     scenarios, by one fixed procedure:
 
+    0. the hose from the junction of L1 and L3 to the Pb transducer, and that transducer's
+       offset (``rig.return_hose_K``, ``rig.pb_sensor_offset``): with L2 closed Pm reads the
+       junction, so Pm - Pb = offset' + Q_total / K_hose over the closed-L2 points (B.7);
     1. load laws, per orifice setting, from the training tests' measured Q and dp (report
        4.7.2, eq. 4.132): Q = K dp + b dp |dp| with b >= 0 (non-negative least squares) where
        the training data span two pressure levels, else the laminar Q = K dp;
@@ -54,7 +57,7 @@ from pvgraph.units import bar, lpm, lpm_per_bar, to_bar, to_lpm
 from .pvg32 import tables
 from .pvg32.modules import A_H_FIT_DROP, A_H_FIT_POSITION_SCALE
 from .pvg32.parameters import PVG32Params, report_initial, report_tuned, with_values
-from .rig import build_rig, laminar_load
+from .rig import build_rig, laminar_load, readings
 from .scenarios import Scenario, all_scenarios, get_scenario
 
 __all__ = ["ROLES", "QUANTITIES", "SATURATED", "TUNED_PROVENANCE", "role", "tuned_roles",
@@ -137,8 +140,8 @@ def _solve(args):
     except PvgraphError as exc:
         return {"error": f"{type(exc).__name__}: {str(exc).splitlines()[0]}"}
     q2, q3 = op["load.L2.q"], op["load.L3.q"]
-    return {"Q_total": q2 + q3, "Q_branch": q2, "Pf": op["load.f.port.p"],
-            "Pm": op["load.m.port.p"], "Pb": op["load.b.port.p"],
+    return {"Q_total": q2 + q3, "Q_branch": q2,
+            **readings(p, op["load.f.port.p"], op["load.m.port.p"], op["load.b.port.p"]),
             "x_m": op["pvg.pvb.main_spool.flange.x"],
             "drop": op["pvg.pvb.PK.port.p"] - op["load.f.port.p"],
             "relief": op["pvg.pvp.A3.q"]}
@@ -179,22 +182,44 @@ def _l3_key(s: Scenario) -> str:
     return "L3.sweep" if s.kind == "voltage_sweep" else f"L3.{s.orifice_L3}"
 
 
-def _load_points(scenarios):
-    """(dp [bar], Q [L/min], scenario, quantities) per orifice setting from measured values."""
+def _load_points(scenarios, meas=(0.0, 0.0)):
+    """(dp [bar], Q [L/min], scenario, quantities) per orifice setting from measured values.
+
+    ``meas`` = (c0 [bar], c1 [bar min/L]): the junction of L1 and L3 is at Pb + c0 + c1 Q_total
+    (:func:`_fit_measurement`); (0, 0) = the junction is node b."""
+    c0, c1 = meas
     pts: dict[str, list] = {}
     for s in scenarios:
         m = s.measured
         if _is_neutral(s):
             continue
         q_total, q_branch = to_lpm(m.Q_total), to_lpm(m.Q_branch)
+        p_j = to_bar(m.Pb) + c0 + c1 * q_total
         pts.setdefault(_l3_key(s), []).append(
-            (to_bar(m.Pf - m.Pb), q_total - q_branch, s.name, ("Pf",)))
+            (to_bar(m.Pf) - p_j, q_total - q_branch, s.name, ("Pf",)))
         if s.l2_open_finally:
             pts.setdefault(f"L1.{s.orifice_L1}", []).append(
-                (to_bar(m.Pm - m.Pb), q_branch, s.name, ("Q_branch", "Pm")))
+                (to_bar(m.Pm) - p_j, q_branch, s.name, ("Q_branch", "Pm")))
             pts.setdefault("L2", []).append(
                 (to_bar(m.Pf - m.Pm), q_branch, s.name, ("Q_branch", "Pf", "Pm")))
     return pts
+
+
+def _fit_measurement(scenarios):
+    """(c0 [bar], c1 [bar min/L], names): Pm - Pb = c0 + c1 Q_total by least squares over the
+    closed-L2 points, where no flow passes L1 and Pm reads the junction of L1 and L3: c1 is the
+    hose from the junction to the Pb transducer (``rig.return_hose_K`` = 1/c1), -c0 the Pb
+    transducer's offset (``rig.pb_sensor_offset``). None where fewer than 3 points or one flow
+    level."""
+    pts = [s for s in scenarios if not s.l2_open_finally]
+    q = np.array([to_lpm(s.measured.Q_total) for s in pts])
+    if len(pts) < 3 or np.ptp(q) < 1.0:
+        return None
+    d = np.array([to_bar(s.measured.Pm - s.measured.Pb) for s in pts])
+    c1, c0 = np.polyfit(q, d, 1)
+    if c1 <= 0.0:
+        return None
+    return float(c0), float(c1), [s.name for s in pts]
 
 
 def _fit_load_law(points, quadratic: bool = True) -> tuple[float, float, str]:
@@ -269,12 +294,14 @@ def _with_shape(p: PVG32Params, shape) -> PVG32Params:
 
 def identify(train: list[Scenario], base: PVG32Params | None = None, *,
              loads_from: list[Scenario] = (), pool=None,
-             load_law: str = "quadratic") -> Identification:
+             load_law: str = "quadratic", measurement: bool = True) -> Identification:
     """Identify the data-derived parameters from ``train`` (module doc, steps 1-3).
 
     ``loads_from``: scenarios whose Q and dp may supply the law of an orifice setting the
     training set does not exercise (their Pf, Pm, Q_branch are then marked ``fit``).
     ``load_law``: "quadratic" (Q = K dp + b dp |dp|) or "laminar" (the report's Q = K dp).
+    ``measurement``: identify the return hose and the Pb transducer offset (step 0) from the
+    training set's closed-L2 points; False = ideal transducers, L1 and L3 end at node b.
     """
     if load_law not in ("quadratic", "laminar"):
         raise PvgraphError(f"identify: load_law must be 'quadratic' or 'laminar', not "
@@ -284,8 +311,23 @@ def identify(train: list[Scenario], base: PVG32Params | None = None, *,
     sources: dict[str, str] = {}
     fitted: set = set()
     updates = {}
+    # 0. measurement: hose from the L1/L3 junction to the Pb transducer, and its offset
+    meas = _fit_measurement(train) if measurement else None
+    c0c1 = (0.0, 0.0)
+    if meas is not None:
+        c0, c1, names = meas
+        c0c1 = (c0, c1)
+        p = p.model_copy(update={"rig": p.rig.model_copy(update={
+            "return_hose_K": lpm_per_bar(1.0 / c1), "pb_sensor_offset": bar(-c0)})})
+        fitted.update((n, "Pm") for n in names)
+        sources["rig.return_hose_K, rig.pb_sensor_offset"] = (
+            f"Pm - Pb = {c0:.3f} bar + {c1:.4f} bar/(L/min) Q_total: hose "
+            f"{1.0 / c1:.1f} L/(min bar), Pb offset {-c0:+.3f} bar from Pm - Pb of "
+            f"{', '.join(names)}")
+    elif measurement:
+        sources["rig.return_hose_K, rig.pb_sensor_offset"] = "not identifiable: ideal"
     # 1. load laws
-    pts_train, pts_other = _load_points(train), _load_points(loads_from)
+    pts_train, pts_other = _load_points(train, c0c1), _load_points(loads_from, c0c1)
     sweep_updates = {}
     for key in ("L1.small", "L1.large", "L3.small", "L3.large", "L3.sweep", "L2"):
         pts, origin = pts_train.get(key), "training tests"
@@ -383,12 +425,12 @@ class CrossValidation:
 
 
 def _fold(args):
-    grouping, key, train_names, test_names, base, load_law = args
+    grouping, key, train_names, test_names, base, options = args
     train = [get_scenario(n) for n in train_names]
     test = [get_scenario(n) for n in test_names]
     loads_from = test if grouping == "load" else ()
     try:
-        ident = identify(train, base, loads_from=loads_from, load_law=load_law)
+        ident = identify(train, base, loads_from=loads_from, **options)
         pred = steady_values(ident.params, test, sweep_load=ident.sweep_load)
     except (PvgraphError, ValueError) as exc:        # a failed fold is recorded, not raised
         message = f"{type(exc).__name__}: {str(exc).splitlines()[0]}"
@@ -415,9 +457,11 @@ def _fold(args):
 
 def cross_validate(groupings=("voltage", "load"), base: PVG32Params | None = None, *,
                    workers: int = 2, progress=None,
-                   load_law: str = "quadratic") -> CrossValidation:
+                   load_law: str = "quadratic", measurement: bool = True,
+                   folds: list[str] | None = None) -> CrossValidation:
     """Leave one group out per grouping; identify on the rest; predict the group's steady
-    states. ``load_law`` as in :func:`identify`."""
+    states. ``load_law``, ``measurement`` as in :func:`identify`; ``folds``: only the folds
+    whose key is listed (e.g. ``["U = 4.6 V"]``), for a quick look at one group."""
     base = base or report_tuned()
     scenarios = all_scenarios()
     jobs = []
@@ -429,7 +473,10 @@ def cross_validate(groupings=("voltage", "load"), base: PVG32Params | None = Non
         for key in keys:
             test = [s.name for s in scenarios if keyf(s) == key]
             train = [s.name for s in scenarios if keyf(s) != key]
-            jobs.append((g, key, train, test, base, load_law))
+            if folds is not None and key not in folds:
+                continue
+            jobs.append((g, key, train, test, base,
+                         {"load_law": load_law, "measurement": measurement}))
     t0 = time.perf_counter()
     records, folds = [], []
     if workers > 1:
@@ -510,8 +557,9 @@ def format_cross_validation(cv: CrossValidation) -> str:
                          f"{cells[2]:>8s} {cells[3]:>8s} {cells[4]:>8s}")
         for label, (ok, total, rows) in judge(cv.records, g).items():
             if not total:
-                lines.append(f"  n/a   held-out {label}: none held out (the held-out "
-                             f"configuration's load law is its own tests' Q/dp)")
+                why = ("the held-out configuration's load law is its own tests' Q/dp"
+                       if g == "load" else "no such point in the folds run")
+                lines.append(f"  n/a   held-out {label}: none held out ({why})")
                 continue
             worst = max(e for _, e, _ in rows)
             lines.append(f"  {'PASS' if ok == total else 'miss'}  held-out {label}: "

@@ -3,8 +3,10 @@
 ``python -m circuits.figures`` regenerates them (about a minute): the pressure drop over L3
 after the L2 step (report figures 4.41-4.48) for
 
-- ``solenoid_map_steps.png``: the PVE valves on the component library's separable map (the
-  model) against the two-dimensional maps of tables.py;
+- ``pve_delay_steps.png``: the PVE valves' switching delays (4.5.5: 20 ms NC, 3 ms NO) as one
+  first-order lag each (the model) against a chain of 4 lags of a quarter of the delay (nearer
+  the report's pure delay: ``pve.delay_stages``), and the 3.5 mm spool step of figure 4.62
+  (``pve_delay_steps_spool.png``);
 - ``lever_mass_steps.png``: the report's lever-equivalent mass 1.569 kg (eq 4.82, kept)
   against the physical 0.157 kg (I / r^2 with the report's own inertia).
 """
@@ -15,11 +17,13 @@ import os
 import sys
 
 from pvgraph.circuits.plotting import plot_step_comparison
+from pvgraph.units import bar, mm
 
 from .pvg32.parameters import report_tuned, with_values
 from .validation import run_scenario
 
-__all__ = ["variant_traces", "solenoid_map_figure", "lever_mass_figure"]
+__all__ = ["variant_traces", "with_delay_stages", "spool_step", "step_metrics", "delay_figure",
+           "lever_mass_figure"]
 
 TESTS = ("test-2", "test-3", "test-8", "test-9")
 
@@ -29,12 +33,82 @@ def variant_traces(variants: dict, tests=TESTS) -> dict:
     return {t: {label: run_scenario(t, p) for label, p in variants.items()} for t in tests}
 
 
-def solenoid_map_figure(path: str) -> str:
+def with_delay_stages(p, stages: int):
+    """``p`` with the PVE valves' switching delays as ``stages`` lags each (pve.delay_stages)."""
+    return p.model_copy(update={"pve": p.pve.model_copy(update={"delay_stages": stages})})
+
+
+def spool_step(p, x_set: float = mm(3.5), t_end: float = 0.6):
+    """``(t, x_m)``: the main spool after a set-point step 0 -> ``x_set`` (report figure 4.62)
+    on the PVB + PVE between ideal pressures (pump 45, load 30, return 5 bar, tank 0), from the
+    steady state at x_set = 0."""
+    import numpy as np
+
+    from pvgraph import Circuit
+    from pvgraph.analysis import steady_state
+    from pvgraph.components.hydraulic import Tank
+    from pvgraph.components.signal import Constant
+    from pvgraph.simulate import simulate
+
+    from .pvg32.modules import build_pvb, build_pve
+
+    def bench(x):
+        c = Circuit("pve_bench")
+        pvb, pve = c.add("pvb", build_pvb(p)), c.add("pve", build_pve(p))
+        tanks = {k: c.add(k, Tank(p0=v)) for k, v in (("pump", bar(45.0)), ("load", bar(30.0)),
+                                                       ("ret", bar(5.0)), ("tank", 0.0))}
+        u = c.add("U", Constant(k=(x - p.pve.input_offset) / p.pve.input_gain
+                                * p.rig.supply_voltage))
+        c.connect(tanks["pump"].port, pvb.P)
+        c.connect(tanks["load"].port, pvb.A)
+        c.connect(tanks["ret"].port, pvb.B)
+        c.connect(tanks["tank"].port, pvb.T, pve.T)
+        c.connect(pvb.spool, pve.spool)
+        c.connect(u.y, pve.U)
+        return c.compile()
+
+    t = np.linspace(0.0, t_end, 1201)
+    op = steady_state(bench(0.0))
+    sol = simulate(bench(x_set), t_end, rtol=1e-6, t_eval=t, y0=op.y)
+    return t, np.asarray(sol["pvb.main_spool.flange.x"])
+
+
+def step_metrics(t, x, x_set):
+    """Overshoot [%] over the final value and 2 % settling time [s] of a step response."""
+    final = x[-1]
+    outside = abs(x - final) > 0.02 * abs(final)
+    return {"overshoot": float(100.0 * (x.max() - final) / final),
+            "settling_time": float(t[outside][-1]) if outside.any() else 0.0,
+            "final_mm": float(1e3 * final)}
+
+
+def delay_figure(path: str, stages: int = 4) -> str:
+    """The lab step tests and the 3.5 mm spool step with the delays as one lag and as
+    ``stages`` lags."""
+    import matplotlib.pyplot as plt
+
     p = report_tuned()
-    tab = p.model_copy(update={"pve": p.pve.model_copy(update={"flow_map": "tables"})})
-    return plot_step_comparison(
-        variant_traces({"separable map (model)": p, "table maps": tab}), path,
-        title="PVE valve maps: dp over L3 after the L2 step")
+    chain = with_delay_stages(p, stages)
+    labels = ("delays as one lag (model)", f"delays as {stages} lags (near the pure delay)")
+    out = plot_step_comparison(
+        variant_traces(dict(zip(labels, (p, chain)))), path,
+        title="PVE switching delays: dp over L3 after the L2 step")
+    fig, ax = plt.subplots(figsize=(6, 3.2))
+    for k, (label, q) in enumerate(zip(labels, (p, chain))):
+        t, x = spool_step(q)
+        m = step_metrics(t, x, mm(3.5))
+        ax.plot(t, 1e3 * x, color=f"C{3 + k}", label=f"{label}: overshoot "
+                f"{m['overshoot']:.1f} %, 2 % settling {1e3 * m['settling_time']:.0f} ms")
+    ax.set_xlabel("time after the set-point step [s]")
+    ax.set_ylabel("main spool x_m [mm]")
+    ax.set_title("3.5 mm set-point step (figure 4.62)", fontsize=9)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=6)
+    fig.tight_layout()
+    spool = path.replace(".png", "_spool.png")
+    fig.savefig(spool, dpi=110)
+    plt.close(fig)
+    return f"{out}, {spool}"
 
 
 def lever_mass_figure(path: str) -> str:
@@ -47,6 +121,6 @@ def lever_mass_figure(path: str) -> str:
 
 if __name__ == "__main__":
     folder = sys.argv[1] if len(sys.argv) > 1 else os.path.join("docs", "img")
-    for make, name in ((solenoid_map_figure, "solenoid_map_steps.png"),
+    for make, name in ((delay_figure, "pve_delay_steps.png"),
                        (lever_mass_figure, "lever_mass_steps.png")):
         print("wrote", make(os.path.join(folder, name)))

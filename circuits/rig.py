@@ -12,6 +12,9 @@ load, so the valve is never touched when the load changes. Provided loads:
 - :func:`laminar_load`: the report's rig load with laminar restrictions Q = K dp (eq. 4.132,
   table 4.8), the model the report validates with (4.7.2);
 - :func:`turbulent_load`: the same with turbulent orifices of table 4.7 (eq. 4.119-4.121);
+- optional (``rig.return_hose_K``): a hose from the junction of L1 and L3 to node b, where Pb
+  is read (the closed-L2 Pm - Pb of B.7 grows with the load flow); :func:`readings` adds the Pb
+  transducer's offset to the model's pressures;
 - :func:`cylinder_load`: a double-acting cylinder carrying a mass on a spring (a crane-like
   load), to show a different load on the same valve.
 
@@ -35,7 +38,8 @@ from pvgraph.units import circle_area
 from .pvg32.modules import build_pvg32
 from .pvg32.parameters import PVG32Params, report_tuned
 
-__all__ = ["build_rig", "laminar_load", "turbulent_load", "cylinder_load", "LoadRestriction"]
+__all__ = ["build_rig", "readings", "laminar_load", "turbulent_load", "cylinder_load",
+           "LoadRestriction"]
 
 
 class LoadRestrictionParams(Params):
@@ -101,7 +105,13 @@ def _rig_load(p: PVG32Params, law: Literal["laminar", "turbulent"], L1: str, L3:
     l2 = c.add("L2", _l2(p, law, l2_open, t_switch))
     c.connect(f.port, l2.a, l3.a)
     c.connect(l2.b, m.port, l1.a)
-    c.connect(l1.b, l3.b, b.port)
+    if r.return_hose_K is not None:
+        # the junction of L1 and L3 (no volume of its own) -> hose -> node b, where Pb is read
+        hose = c.add("return_hose", LaminarOrifice(K=r.return_hose_K))
+        c.connect(l1.b, l3.b, hose.a)
+        c.connect(hose.b, b.port)
+    else:
+        c.connect(l1.b, l3.b, b.port)
     c.expose("B", f.port, "supply side (node f)")
     c.expose("A", b.port, "return side (node b)")
     return c
@@ -141,6 +151,12 @@ def cylinder_load(p: PVG32Params | None = None, *, mass: float = 200.0, k: float
     c.expose("B", cyl.A, "piston side")
     c.expose("A", cyl.B, "rod side")
     return c
+
+
+def readings(p: PVG32Params, Pf, Pm, Pb) -> dict:
+    """What the rig's transducers read for the model's pressures at f, m, b [Pa] (B.7):
+    Pb with the transducer offset ``rig.pb_sensor_offset``; Pf and Pm as they are."""
+    return {"Pf": Pf, "Pm": Pm, "Pb": Pb + p.rig.pb_sensor_offset}
 
 
 def build_rig(p: PVG32Params | None = None, *, load: Circuit | None = None,

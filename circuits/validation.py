@@ -31,7 +31,7 @@ from pvgraph.units import bar, to_bar, to_lpm
 
 from .crossval import PRESSURE_TOL, pvp_margin_reachable, tuned_roles
 from .pvg32.parameters import PVG32Params, report_tuned
-from .rig import build_rig, laminar_load, turbulent_load
+from .rig import build_rig, laminar_load, readings, turbulent_load
 from .scenarios import Scenario, all_scenarios, get_scenario
 
 __all__ = ["ScenarioResult", "run_scenario", "validate", "comparison_records", "targets",
@@ -98,8 +98,8 @@ def run_scenario(scenario: Scenario | str, params: PVG32Params | None = None, *,
     wall = time.perf_counter() - t0
     q_l2, q_l3 = sol["load.L2.q"], sol["load.L3.q"]
     pf, pm, pb = sol["load.f.port.p"], sol["load.m.port.p"], sol["load.b.port.p"]
-    simulated = {"Q_total": q_l2[-1] + q_l3[-1], "Q_branch": q_l2[-1], "Pf": pf[-1],
-                 "Pm": pm[-1], "Pb": pb[-1]}
+    simulated = {"Q_total": q_l2[-1] + q_l3[-1], "Q_branch": q_l2[-1],
+                 **readings(p, pf[-1], pm[-1], pb[-1])}
     margins = {
         "pump_margin": sol.final("pvg.pvp.Vp.port.p") - sol.final("pvg.pvb.V2.port.p"),
         "main_spool_drop": sol.final("pvg.pvb.PK.port.p") - pf[-1],

@@ -34,12 +34,12 @@ from pvgraph.components.hydraulic.volumes import PistonChamber
 from pvgraph.components.mechanical import EndStop, Friction, LinearSpring, SpoolMass
 from pvgraph.components.mechanical.springs import CenteringSpring, TwoStageSpring
 from pvgraph.components.signal import LVDT, PVEController
+from pvgraph.components.signal.blocks import FirstOrderLag
 from pvgraph.components.signal.sources import Constant
 from pvgraph import Circuit
 
 from . import tables
 from .friction import LuGreFriction
-from .pwm_valve import MappedPWMValve
 from .parameters import PVG32Params, report_tuned
 
 __all__ = ["build_pvp", "build_pvb", "build_pve", "build_pvg32", "opening_areas"]
@@ -280,6 +280,17 @@ def build_pvb(p: PVG32Params | None = None) -> Circuit:
     return c
 
 
+def _delay_chain(c: Circuit, name: str, delay: float, stages: int, y0: float, target):
+    """Connect ``stages - 1`` first-order lags of ``delay / stages`` in front of ``target``;
+    return the input port of the chain (``target`` itself for one stage)."""
+    port = target
+    for k in range(stages - 1, 0, -1):
+        lag = c.add(f"{name}_delay{k}", FirstOrderLag(tau=delay / stages, y0=y0))
+        c.connect(lag.y, port)
+        port = lag.u
+    return port
+
+
 def build_pve(p: PVG32Params | None = None) -> Circuit:
     """PVE electro-hydraulic actuator (report 4.5, eq. 4.92-4.115).
 
@@ -303,11 +314,17 @@ def build_pve(p: PVG32Params | None = None) -> Circuit:
     drain = c.add("drain", Orifice(A=e.drain_orifice_area, **_fluid(p)))
     v4 = c.add("V4", PistonChamber(A=m.spool_area, V0=e.port_a_volume, side=1, beta=beta))
     v5 = c.add("V5", PistonChamber(A=m.spool_area, V0=e.port_b_volume, side=-1, beta=beta))
-    valve = MappedPWMValve if e.flow_map == "tables" else PWMValve
-    nc1 = c.add("NC1", valve(kind="NC", tau=e.nc1.switching_delay, DT0=e.duty_offset))
-    no2 = c.add("NO2", valve(kind="NO", tau=e.no2.switching_delay, DT0=e.duty_offset))
-    nc3 = c.add("NC3", valve(kind="NC", tau=e.nc3.switching_delay, DT0=e.duty_offset))
-    no4 = c.add("NO4", valve(kind="NO", tau=e.no4.switching_delay, DT0=e.duty_offset))
+    # one flow map for all four valves: the library's (figure 4.55's lines; section 6 of
+    # docs/pvg32_model.md says why the two-dimensional reconstruction was retired); the
+    # switching delay (4.5.5) as the valve's own lag, after delay_stages - 1 lags of the same
+    # time constant on its duty-cycle signal
+    n = e.delay_stages
+    valves = {}
+    for name, kind, vp in (("NC1", "NC", e.nc1), ("NO2", "NO", e.no2), ("NC3", "NC", e.nc3),
+                           ("NO4", "NO", e.no4)):
+        valves[name] = c.add(name, PWMValve(kind=kind, tau=vp.switching_delay / n,
+                                            DT0=e.duty_offset))
+    nc1, no2, nc3, no4 = (valves[k] for k in ("NC1", "NO2", "NC3", "NO4"))
     check_a = c.add("check_A", CheckValve(A=e.check_valve_area,
                                           p_crack=e.check_valve_cracking_pressure, **_fluid(p)))
     check_b = c.add("check_B", CheckValve(A=e.check_valve_area,
@@ -323,8 +340,11 @@ def build_pve(p: PVG32Params | None = None) -> Circuit:
     c.connect(no2.b, no4.b, check_a.a, check_b.a, lower.port, drain.a)   # lower (eq. 4.100)
     c.connect(v4.flange, v5.flange, lvdt.flange)
     c.connect(lvdt.y, controller.x_meas)
-    c.connect(controller.DT_B, nc3.DT, no4.DT)           # rises with the error: pushes x_m up
-    c.connect(controller.DT_A, nc1.DT, no2.DT)
+    # DT_B rises with the error: it drives the V4 valves and pushes x_m up
+    for signal, names in ((controller.DT_B, ("NC3", "NO4")), (controller.DT_A, ("NC1", "NO2"))):
+        for name in names:
+            c.connect(signal, _delay_chain(c, name, getattr(e, name.lower()).switching_delay, n,
+                                           e.duty_offset, valves[name].DT))
     c.expose("spool", v4.flange, "main spool ends")
     c.expose("T", drain.b, "drain to tank")
     c.expose("U", controller.V_in, "input voltage U_in [V]")

@@ -355,9 +355,11 @@ class MainSpoolParams(_Params):
 class SolenoidValveParams(_Params):
     """One PVE on/off solenoid valve, driven by a duty cycle (4.5.4, 4.5.5).
 
-    The duty-cycle-averaged flow is Q = map(DT, |dp|) sign(dp) with the NC or NO map of
-    :mod:`pvgraph.circuits.pvg32.tables` (figure 4.22). The report delays the duty-cycle signal by the
-    switching delay ("time delay implemented in the control", 4.5.5).
+    The duty-cycle-averaged flow is the NC or NO map of
+    :mod:`pvgraph.components.hydraulic.solenoid` (``PWMValve``: figure 4.55's lines at the
+    report's linearisation pressures, orifice scaling in dp), the model's one map
+    (docs/pvg32_model.md section 6). The report delays the duty-cycle signal by the switching
+    delay ("time delay implemented in the control", 4.5.5).
     """
 
     kind: Literal["NC", "NO"] = Field(
@@ -452,19 +454,20 @@ class PVEParams(_Params):
                     "offset - gain e, both clipped to [0, 1]. CHOICE: eq 4.115 gives the + sign "
                     "to port B, which with eq 4.86/4.93 (P4 pushes +x_m) is positive feedback; "
                     "the sign is assigned so the loop is stable (as the linear model 4.142 does)")
+    delay_stages: int = Field(
+        1, ge=1, le=16,
+        description="Stages n of each valve's switching delay [-]: the duty-cycle signal passes "
+                    "n first-order lags of delay/n in series (4.5.5's pure delay of 20 ms NC, "
+                    "3 ms NO, as an Erlang chain: the same mean delay, phase -n atan(w tau/n), "
+                    "the pure delay's -w tau as n grows; monotone, so the duty cycle stays in "
+                    "[0, 1]). 1 = one lag (the model; the linear model 4.8.2 also uses lags). "
+                    "docs/pvg32_model.md section 6 shows the effect of 4 stages")
     map_supply_voltage: float = Field(
         13.0, gt=0.0, le=50.0,
         description="Supply voltage at which the solenoid flow maps were made [V] (4.5.4, "
                     "figure 4.22: 13 V at 50 degC); informational. The rig ran at the identified "
                     "11.5 V (4.7.3); the report gives no map at that voltage, so the 13 V map is "
                     "used (docs/pvg32_model.md, section 6)")
-    flow_map: Literal["separable", "tables"] = Field(
-        "separable",
-        description="Flow map of NC1-NO4 [-]: 'separable' = Q_ref(DT) sqrt(dp/dp_ref) of "
-                    "pvgraph.components.hydraulic.solenoid (figure 4.55's lines at the report's "
-                    "linearisation pressures, the gains of its linear model 4.8-4.9); 'tables' = "
-                    "the two-dimensional maps of pvgraph.circuits.pvg32.tables (also figure 4.56), "
-                    "pvgraph.circuits.pvg32.pwm_valve. docs/pvg32_model.md section 6 compares them")
 
     @property
     def supply_orifice_area(self) -> float:
@@ -588,6 +591,24 @@ class RigParams(_Params):
                     "always returns to tank in steady state. Identified from the closed-L2 "
                     "tests 1, 4, 7, 10 (Pb measured minus Pb simulated without this line: 2.9, "
                     "3.7, 3.0, 3.3 bar). None: no return line, as in the report")
+    return_hose_K: float | None = Field(
+        None, gt=0.0, le=1e-6,
+        description="Laminar constant of the hose from the junction of L1 and L3 to the point "
+                    "where Pb is measured [m^3/(s Pa)]. Not in the report (B.6 lists the hoses, "
+                    "4.6 the transducers, not where they sit). With L2 closed no flow passes L1, "
+                    "so Pm reads the junction: B.7's closed-L2 points give Pm - Pb = 0.475 bar + "
+                    "0.0435 bar/(L/min) Q_total (15 points, both tables, residuals within 0.2 "
+                    "bar), i.e. this hose carrying the load flow (23 L/(min bar)) and a Pb "
+                    "transducer offset (pb_sensor_offset). None = no hose (the report's rig): "
+                    "L1 and L3 end at node b. circuits.crossval.identify identifies it from the "
+                    "training points")
+    pb_sensor_offset: float = Field(
+        0.0, ge=bar(-3.0), le=bar(3.0),
+        description="Reading minus true pressure of the Pb transducer [Pa]. At zero flow "
+                    "(neutral sweep points, B.7) Pf and Pm agree within 0.06 bar and Pb reads "
+                    "0.47-0.51 bar below them; one offset on Pb explains it (the alternative, Pf "
+                    "and Pm both reading high, predicts the same differences). Within the "
+                    "transducers' +-1 bar (B.7). 0 = ideal transducer (the report)")
     load_flow_model: Literal["laminar", "turbulent"] = Field(
         "laminar",
         description="Flow law of L1/L2/L3 [-] (4.7.2: the measured Q(dp) is linear, so laminar "

@@ -1,13 +1,14 @@
-"""Opening-area tables and solenoid-valve flow maps of the PVG 32 (report chapter 4).
+"""Opening-area tables of the PVG 32 (report chapter 4).
 
-Everything here is a plain, documented numpy table in SI units: positions x [m], areas [m^2],
-duty cycles DT [0..1], pressure drops dp [Pa], flows Q [m^3/s]. Components take the arrays, so a
-user can pass their own table instead (any increasing ``x`` with non-negative ``area``, or any
-``duty`` x ``dp`` grid of flows). :class:`AreaTable` and :class:`SolenoidFlowMap` are thin frozen
-holders with a convenience ``__call__`` (linear / bilinear interpolation, clamped at the ends).
+Everything here is a plain, documented numpy table in SI units: positions x [m], areas [m^2].
+Components take the arrays, so a user can pass their own table instead (any increasing ``x``
+with non-negative ``area``). :class:`AreaTable` is a thin frozen holder with a convenience
+``__call__`` (linear interpolation, clamped at the ends). The PVE solenoid valves' flow map is
+the component library's (``pvgraph.components.hydraulic.solenoid``: one map, docs/pvg32_model.md
+section 6).
 
-The report's AMOC tables (compensator A1, figure 4.9c; main spool A_H, figure 4.14a) and the
-Danfoss 4-D solenoid-valve model (figure 4.22) are not in the report's text. Each table below says
+The report's AMOC tables (compensator A1, figure 4.9c; main spool A_H, figure 4.14a) are not in
+the report's text. Each table below says
 exactly how it was reconstructed: from the report's equations, its stated anchor points, and,
 where the text is silent, from the lab data and the report's own identification assumptions.
 Reconstructions are monotone where the physics is (tests check this and the anchor points).
@@ -19,10 +20,6 @@ Tables
 ``compensator_opening_area``  A2(x_k) = pi 18 mm x_k, compensator, P0 -> P_K (eq 4.38)
 ``main_spool_area``           A_H(x_m), main spool, both metering edges (4.4.2, figure 4.14a)
 ``pilot_orifice_areas``       the fixed orifices A4, A5, A6, A7, supply, drain, check balls
-``nc_flow_map`` / ``no_flow_map``  duty-cycle-averaged Q(DT, dp) of the PVE solenoid valves
-                              (4.5.4 figure 4.22; anchors from figures 4.55 and 4.56); the
-                              PVE valves run on them with ``pve.flow_map = "tables"``
-                              (``pwm_valve.MappedPWMValve``)
 """
 
 from __future__ import annotations
@@ -33,22 +30,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from pvgraph.circuits.pvg32.parameters import PVG32Params
-from pvgraph.units import BAR, bar, mm, mm2
+from pvgraph.units import bar, mm, mm2
 
 __all__ = [
     "AreaTable",
-    "FlowAnchor",
-    "SolenoidFlowMap",
     "pvp_tank_area",
     "compensator_closing_area",
     "compensator_opening_area",
     "main_spool_area",
     "MAIN_SPOOL_LAB_ANCHORS",
     "pilot_orifice_areas",
-    "nc_flow_map",
-    "no_flow_map",
-    "NC_LINEAR_FITS",
-    "NO_LINEAR_FITS",
 ]
 
 
@@ -275,187 +266,3 @@ def pilot_orifice_areas(params: PVG32Params) -> dict[str, float | None]:
         "A_drain": params.pve.drain_orifice_area,
         "A_checkvalve": params.pve.check_valve_area,
     }
-
-
-# ---------------------------------------------------------------------------------- PVE valves
-@dataclass(frozen=True)
-class FlowAnchor:
-    """A point (DT, dp, Q) the report's text gives for a solenoid valve, with its tolerance."""
-
-    duty: float        # [-], 0..1
-    dp: float          # [Pa]
-    flow: float        # [m^3/s]
-    source: str
-    rel_tol: float     # relative tolerance a reconstruction must meet
-    abs_tol: float = 2e-7  # [m^3/s] floor for near-zero flows
-
-
-@dataclass(frozen=True, eq=False)
-class SolenoidFlowMap:
-    """Duty-cycle-averaged flow of a PVE solenoid valve, Q(DT, dp) >= 0 for dp >= 0.
-
-    Attributes
-    ----------
-    name : str
-    kind : {"NC", "NO"}
-    duty : ndarray
-        Increasing duty cycles in [0, 1].
-    dp : ndarray
-        Increasing pressure drops [Pa], starting at 0.
-    flow : ndarray
-        Flows [m^3/s], shape (len(duty), len(dp)).
-    anchors : tuple of FlowAnchor
-        Points stated in the report that the table must pass through (within tolerance).
-    source : str
-
-    Use ``Q = map(DT, |dp|) * sign(dp)`` (regularised near dp = 0) for reverse flow; the report
-    models these valves as uni-directional in practice (pilot side above chamber above tank side).
-    """
-
-    name: str
-    kind: str
-    duty: np.ndarray
-    dp: np.ndarray
-    flow: np.ndarray
-    anchors: tuple[FlowAnchor, ...]
-    source: str
-
-    def __post_init__(self):
-        duty, dp, flow = _frozen(self.duty), _frozen(self.dp), _frozen(self.flow)
-        if duty.ndim != 1 or dp.ndim != 1 or flow.shape != (duty.size, dp.size):
-            raise ValueError(f"SolenoidFlowMap {self.name}: flow must have shape (len(duty), len(dp))")
-        if np.any(np.diff(duty) <= 0) or np.any(np.diff(dp) <= 0):
-            raise ValueError(f"SolenoidFlowMap {self.name}: duty and dp must be strictly increasing")
-        if duty[0] < 0 or duty[-1] > 1 or dp[0] != 0.0:
-            raise ValueError(f"SolenoidFlowMap {self.name}: duty must lie in [0, 1] and dp start at 0")
-        if not np.all(np.isfinite(flow)) or np.any(flow < 0):
-            raise ValueError(f"SolenoidFlowMap {self.name}: flows must be finite and >= 0")
-        object.__setattr__(self, "duty", duty)
-        object.__setattr__(self, "dp", dp)
-        object.__setattr__(self, "flow", flow)
-
-    def __call__(self, duty, dp):
-        """Bilinear interpolation of Q [m^3/s] at (duty [0..1], dp [Pa] >= 0), clamped to the grid."""
-        d = np.clip(np.asarray(duty, dtype=float), self.duty[0], self.duty[-1])
-        p = np.clip(np.asarray(dp, dtype=float), self.dp[0], self.dp[-1])
-        d, p = np.broadcast_arrays(d, p)
-        i = np.clip(np.searchsorted(self.duty, d, side="right") - 1, 0, self.duty.size - 2)
-        j = np.clip(np.searchsorted(self.dp, p, side="right") - 1, 0, self.dp.size - 2)
-        td = (d - self.duty[i]) / (self.duty[i + 1] - self.duty[i])
-        tp = (p - self.dp[j]) / (self.dp[j + 1] - self.dp[j])
-        f = self.flow
-        q = ((1 - td) * (1 - tp) * f[i, j] + td * (1 - tp) * f[i + 1, j]
-             + (1 - td) * tp * f[i, j + 1] + td * tp * f[i + 1, j + 1])
-        return q if q.ndim else float(q)
-
-
-#: Linear fits printed in figure 4.55, Q = slope * DT[%] + intercept [m^3/s], by dp [bar].
-NC_LINEAR_FITS: dict[float, tuple[float, float]] = {13.5: (3.0e-7, -3.7e-6), 2.0: (1.1e-7, -2.4e-6)}
-NO_LINEAR_FITS: dict[float, tuple[float, float]] = {4.0: (-1.8e-7, 1.6e-5), 2.0: (-1.7e-7, 1.3e-5)}
-#: Figure 4.56: Q vs dp [Pa] at fixed duty, Q = slope * dp + intercept.
-NC_DP_FIT_70 = (1.2e-11, 1.5e-6)   # NC, DT = 70 %
-NO_DP_FIT_80 = (8.3e-12, -1.9e-6)  # NO, DT = 80 %
-
-_DUTY_GRID = np.linspace(0.0, 1.0, 101)
-_DP_GRID_BAR = np.array([0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 13.5, 14, 15, 16], float)
-
-
-def _fit(fits, dp_bar, duty):
-    slope, intercept = fits[dp_bar]
-    return np.maximum(slope * 100.0 * duty + intercept, 0.0)
-
-
-def nc_flow_map() -> SolenoidFlowMap:
-    """Normally-closed valve (NC1, NC3; pilot side): Q rises with DT and dp.
-
-    Reconstruction of figure 4.22 (left; curves 2-16 bar, 50 degC, 13 V, max ~3e-5 m^3/s at
-    16 bar and 100 %) from the numbers the text gives:
-
-    * figure 4.55 linear fits, Q = 3.0e-7 DT[%] - 3.7e-6 at 13.5 bar and
-      Q = 1.1e-7 DT[%] - 2.4e-6 at 2 bar, clipped at 0 (the NC passes nothing below ~12 % resp.
-      ~22 % duty: its 20 ms switching delay, 4.5.5);
-    * between 0 and 2 bar Q scales linearly with dp to 0; between 2 and 13.5 bar it is linear in
-      dp, which figure 4.56 shows at DT = 70 % (Q = 1.2e-11 dp + 1.5e-6); above 13.5 bar the same
-      slope is extended to 16 bar, giving 3.0e-5 m^3/s at 100 %, the top of figure 4.22.
-
-    Anchors: the two fit lines (exact) and the figure-4.56 line at 8 and 12 bar (10 %).
-    """
-    duty = _DUTY_GRID
-    q2, q135 = _fit(NC_LINEAR_FITS, 2.0, duty), _fit(NC_LINEAR_FITS, 13.5, duty)
-    cols = []
-    for p in _DP_GRID_BAR:
-        if p <= 2.0:
-            cols.append(q2 * p / 2.0)
-        else:
-            cols.append(q2 + (q135 - q2) * (p - 2.0) / 11.5)
-    anchors = []
-    for p in (2.0, 13.5):
-        slope, icpt = NC_LINEAR_FITS[p]
-        for d in (0.3, 0.5, 0.7, 1.0):
-            anchors.append(FlowAnchor(d, bar(p), slope * 100 * d + icpt,
-                                      f"figure 4.55 NC linear fit at {p} bar", 1e-9))
-    for p in (8.0, 12.0):
-        anchors.append(FlowAnchor(0.7, bar(p), NC_DP_FIT_70[0] * bar(p) + NC_DP_FIT_70[1],
-                                  "figure 4.56 NC, DT = 70 %", 0.10))
-    return SolenoidFlowMap(
-        name="NC", kind="NC", duty=duty, dp=_DP_GRID_BAR * BAR, flow=np.column_stack(cols),
-        anchors=tuple(anchors),
-        source="figure 4.22 (left) reconstructed from the figure 4.55 fits (2, 13.5 bar) and "
-               "figure 4.56 (DT 70 %)",
-    )
-
-
-def no_flow_map() -> SolenoidFlowMap:
-    """Normally-open valve (NO2, NO4; tank side): Q falls with DT, rises with dp.
-
-    Reconstruction of figure 4.22 (right; 2-16 bar, "larger constant region" than the NC) from
-    the numbers the text gives:
-
-    * 2 and 4 bar: figure 4.55 linear fits Q = -1.7e-7 DT[%] + 1.3e-5 (2 bar) and
-      Q = -1.8e-7 DT[%] + 1.6e-5 (4 bar), clipped at 0 (text 4.8.2 says 4 bar; the caption's
-      "6 bar" contradicts the legend);
-    * 6-16 bar: piecewise linear in DT through (0 %, Q0), (80 %, Q80), (100 %, 0), with
-      Q80 = 8.3e-12 dp - 1.9e-6 (figure 4.56, DT = 80 %) and the fully open flow
-      Q0 = 1.6e-5 sqrt(dp / 4 bar) (orifice scaling of the 4 bar fit's intercept; figure 4.22's
-      peak value at 16 bar is not printed). Continuously energised (100 %) the NO is shut;
-    * between grid pressures Q is linear in dp.
-
-    At 4 bar the 6-bar construction and the 4-bar fit agree within 1 % at 30 %, which supports it.
-    Anchors: the two fit lines (exact) and the figure-4.56 line at 8 and 13.5 bar (exact).
-    """
-    duty = _DUTY_GRID
-    cols = []
-    for p in _DP_GRID_BAR:
-        if p == 0.0:
-            cols.append(np.zeros_like(duty))
-        elif p in (2.0, 4.0):
-            cols.append(_fit(NO_LINEAR_FITS, p, duty))
-        elif p >= 6.0:
-            q0 = NO_LINEAR_FITS[4.0][1] * math.sqrt(p / 4.0)
-            q80 = max(NO_DP_FIT_80[0] * bar(p) + NO_DP_FIT_80[1], 0.0)
-            cols.append(np.interp(duty, [0.0, 0.8, 1.0], [q0, q80, 0.0]))
-        else:
-            cols.append(None)
-    # fill 1, 3, 5 bar by linear interpolation in dp between the defined columns
-    defined = [k for k, c in enumerate(cols) if c is not None]
-    for k, c in enumerate(cols):
-        if c is None:
-            lo = max(i for i in defined if _DP_GRID_BAR[i] < _DP_GRID_BAR[k])
-            hi = min(i for i in defined if _DP_GRID_BAR[i] > _DP_GRID_BAR[k])
-            t = (_DP_GRID_BAR[k] - _DP_GRID_BAR[lo]) / (_DP_GRID_BAR[hi] - _DP_GRID_BAR[lo])
-            cols[k] = (1 - t) * cols[lo] + t * cols[hi]
-    anchors = []
-    for p in (2.0, 4.0):
-        slope, icpt = NO_LINEAR_FITS[p]
-        for d in (0.0, 0.3, 0.5, 0.7):
-            anchors.append(FlowAnchor(d, bar(p), slope * 100 * d + icpt,
-                                      f"figure 4.55 NO linear fit at {p} bar", 1e-9))
-    for p in (8.0, 13.5):
-        anchors.append(FlowAnchor(0.8, bar(p), NO_DP_FIT_80[0] * bar(p) + NO_DP_FIT_80[1],
-                                  "figure 4.56 NO, DT = 80 %", 1e-9))
-    return SolenoidFlowMap(
-        name="NO", kind="NO", duty=duty, dp=_DP_GRID_BAR * BAR, flow=np.column_stack(cols),
-        anchors=tuple(anchors),
-        source="figure 4.22 (right) reconstructed from the figure 4.55 fits (2, 4 bar) and "
-               "figure 4.56 (DT 80 %), orifice scaling of the fully open flow",
-    )

@@ -100,10 +100,12 @@ def test_cross_validation_held_out_targets():
     assert not [r for r in cv.records if r["error"] is None]
     t = X.judge(cv.records, "voltage")
     # the flow target (>= 15 of 17 held-out points within the meter's 1 L/min) is met; the
-    # pressure target (>= 10 of 12) is not: the load's own scatter between voltage groups
-    # (Q/dp of one setting 5-10 % apart at equal dp) limits it (docs/pvg32_model.md, 8b)
+    # pressure target (>= 10 of 12) is not: 9 of 12 with the return hose and the Pb
+    # transducer offset identified per fold (7 without); the load's own scatter between
+    # voltage groups (Q/dp of one setting 10 % apart in tests 7-9 and 10-12) limits it
+    # (docs/pvg32_model.md, 8b)
     assert t["flow within 1 L/min (non-neutral points)"][0] >= 15
-    assert t["Pf, Pm, Pb within 2 bar (step tests)"][0] >= 7
+    assert t["Pf, Pm, Pb within 2 bar (step tests)"][0] >= 9
     assert t["Pf, Pm, Pb within 2 bar (non-neutral sweep points)"][0] >= 4
     # every held-out record was predicted without its scenario's data
     for fold in cv.folds:
@@ -114,3 +116,8 @@ def test_identify_rejects_an_unknown_load_law():
     from pvgraph.errors import PvgraphError
     with pytest.raises(PvgraphError, match="load_law"):
         X.identify(all_scenarios(), load_law="turbulent")
+
+
+def test_cross_validate_runs_only_the_folds_asked_for():
+    cv = X.cross_validate(("voltage", "load"), workers=1, folds=["no such fold"])
+    assert cv.folds == [] and cv.records == []

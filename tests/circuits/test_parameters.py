@@ -254,51 +254,6 @@ def test_pilot_orifice_areas():
     assert tables.pilot_orifice_areas(report_initial())["A7"] is None
 
 
-# ---------------------------------------------------------------- solenoid flow maps
-@pytest.mark.parametrize("make", [tables.nc_flow_map, tables.no_flow_map])
-def test_flow_map_anchor_points(make):
-    fmap = make()
-    assert fmap.anchors
-    for a in fmap.anchors:
-        q = fmap(a.duty, a.dp)
-        assert abs(q - a.flow) <= max(a.rel_tol * abs(a.flow), a.abs_tol), (a, q)
-
-
-def test_flow_maps_monotone():
-    nc, no = tables.nc_flow_map(), tables.no_flow_map()
-    assert np.all(np.diff(nc.flow, axis=0) >= -1e-18)   # NC: more duty, more flow
-    assert np.all(np.diff(no.flow, axis=0) <= 1e-18)    # NO: more duty, less flow
-    for fmap in (nc, no):
-        assert np.all(np.diff(fmap.flow, axis=1) >= -1e-18)  # more dp, more flow
-        assert np.all(fmap.flow[:, 0] == 0.0)                # no flow without dp
-    assert np.all(nc.flow[0, :] == 0.0)    # NC shut at 0 %
-    assert np.all(no.flow[-1, :] == 0.0)   # NO shut at 100 %
-
-
-def test_flow_map_levels_match_figure_4_22():
-    """Figure 4.22: NC peaks near 3e-5 m^3/s at 16 bar, 100 %; figure 4.23: at 2 bar and
-    DT = 80 % the NC passes more than the NO."""
-    nc, no = tables.nc_flow_map(), tables.no_flow_map()
-    assert nc(1.0, bar(16)) == pytest.approx(3.0e-5, rel=0.05)
-    assert nc(0.8, bar(2)) > no(0.8, bar(2))
-
-
-def test_flow_map_interpolation_and_clamping():
-    nc = tables.nc_flow_map()
-    q = nc(np.array([0.5, 0.7]), np.array([bar(13.5), bar(13.5)]))
-    assert q.shape == (2,) and q[1] > q[0]
-    assert nc(1.2, bar(20)) == nc(1.0, bar(16))
-
-
-def test_user_supplied_flow_map():
-    fmap = tables.SolenoidFlowMap(name="lin", kind="NC", duty=[0.0, 1.0], dp=[0.0, 1e6],
-                                  flow=[[0.0, 0.0], [0.0, 1e-5]], anchors=(), source="test")
-    assert fmap(0.5, 5e5) == pytest.approx(0.25e-5)
-    with pytest.raises(ValueError, match="shape"):
-        tables.SolenoidFlowMap(name="bad", kind="NC", duty=[0.0, 1.0], dp=[0.0, 1e6],
-                               flow=[[0.0, 0.0]], anchors=(), source="test")
-
-
 def test_documented_parameter_table_is_the_code_s():
     """docs/pvg32_model.md section 12 is generated from the parameter models; no drift."""
     from pathlib import Path
@@ -324,3 +279,78 @@ def test_documented_tables_are_linear_as_evaluated():
     kw = _table(areas["A3"])
     table = E.Table(kw["x_table"], kw["A_table"], method="pchip")
     assert table.value(mm(2.0) + TABLE_STEP) == pytest.approx(mm2(60.0) * TABLE_STEP / mm(1.0))
+
+
+# ---------------------------------------------------------------- the PVE valves' one map
+def test_pve_valves_run_on_one_map_with_the_reports_delays():
+    """One flow map for NC1-NO4: the library's PWMValve with figure 4.55's lines, the
+    switching delays of 4.5.5 (NC 20 ms, NO 3 ms; the NO shuts 17 ms before the NC opens)."""
+    from pvgraph.circuits.pvg32.modules import build_pve
+    from pvgraph.components.hydraulic.solenoid import PWMValve
+
+    pve = build_pve(report_tuned())
+    valves = {n: c for n, c in pve.components.items() if n[:2] in ("NC", "NO")}
+    assert sorted(valves) == ["NC1", "NC3", "NO2", "NO4"]
+    for name, valve in valves.items():
+        assert type(valve) is PWMValve
+        assert valve.params.kind == name[:2]
+        assert valve.params.setting("tau") == (0.020 if name[:2] == "NC" else 0.003)
+    nc, no = valves["NC1"].params, valves["NO2"].params
+    # figure 4.55's lines at the linearisation pressures (4.8): NC 13.5 bar, NO 4 bar
+    for dt in (0.3, 0.5, 0.7, 0.9):
+        assert float(nc.flow(dt, bar(13.5))) == pytest.approx(3.0e-7 * 100 * dt - 3.7e-6,
+                                                              rel=0.02)
+        assert float(no.flow(dt - 0.2, bar(4.0))) == pytest.approx(
+            -1.8e-7 * 100 * (dt - 0.2) + 1.6e-5, rel=0.02)
+
+
+def test_rig_operating_point_of_the_pve_valves():
+    """Where the maps are used (docs/pvg32_model.md section 6): at a lab operating point (test
+    1, 4.24 V) one pair of valves holds its chamber at the NC's zero-flow end of the map
+    (fig. 4.55's 13.5 bar line is zero at 12.3 %), the NO valves see less than the 4 bar of
+    their linearisation, the NC valves less than the 13.5 bar pilot."""
+    from pvgraph.analysis import steady_state
+    from pvgraph.circuits.rig import build_rig, laminar_load
+
+    p = report_tuned()
+    op = steady_state(build_rig(p, load=laminar_load(p), U_input=4.24).compile(), tol=1e-10)
+    duty = sorted(op[f"pvg.pve.{v}.d"] for v in ("NC1", "NC3"))
+    assert duty[0] < 0.15 < 0.40 < duty[1]
+    for v in ("NO2", "NO4"):
+        assert 0.0 <= op[f"pvg.pve.{v}.dp"] < bar(4.0)
+    for v in ("NC1", "NC3"):
+        assert 0.0 < op[f"pvg.pve.{v}.dp"] < bar(13.5)
+
+
+@pytest.mark.parametrize("stages", [1, 4])
+def test_switching_delay_as_a_chain_of_lags(stages):
+    """pve.delay_stages = n: the duty cycle reaches the valve through n lags of delay / n (an
+    Erlang delay: mean delay 20 ms for the NC, 4.5.5). A duty-cycle step from 28.4 % follows
+    1 - exp(-t/theta) sum_{k<n} (t/theta)^k / k!, theta = delay / n."""
+    from pvgraph import Circuit
+    from pvgraph.circuits.pvg32.modules import _delay_chain, build_pve
+    from pvgraph.components.hydraulic import Tank
+    from pvgraph.components.hydraulic.solenoid import PWMValve
+    from pvgraph.components.signal.sources import Constant
+    from pvgraph.simulate import simulate
+
+    delay, d0, d1 = 0.020, 0.284, 0.6
+    c = Circuit("chain")
+    valve = c.add("NC1", PWMValve(kind="NC", tau=delay / stages, DT0=d0))
+    hi, lo = c.add("hi", Tank(p0=bar(13.5))), c.add("lo", Tank(p0=bar(5.0)))
+    c.connect(hi.port, valve.a)
+    c.connect(lo.port, valve.b)
+    u = c.add("u", Constant(k=d1))
+    c.connect(u.y, _delay_chain(c, "NC1", delay, stages, d0, valve.DT))
+    t = np.array([0.005, 0.020, 0.060])
+    sol = simulate(c.compile(), t[-1], rtol=1e-9, atol=1e-12, t_eval=t)
+    theta = delay / stages
+    erlang = 1.0 - np.exp(-t / theta) * sum((t / theta) ** k / math.factorial(k)
+                                            for k in range(stages))
+    assert np.asarray(sol["NC1.d"]) == pytest.approx(d0 + (d1 - d0) * erlang, abs=2e-5)
+    # in the PVE: n - 1 lags in front of each of the four valves, none for one stage
+    p = report_tuned()
+    pve = build_pve(p.model_copy(update={"pve": p.pve.model_copy(
+        update={"delay_stages": stages})}))
+    lags = [n for n in pve.components if "_delay" in n]
+    assert len(lags) == 4 * (stages - 1)
