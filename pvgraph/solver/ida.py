@@ -561,8 +561,13 @@ class IDAIntegrator:
         if kused < maxord:
             phi[kused + 1] = ee
         phi[kused] += ee
-        for j in range(kused - 1, -1, -1):
-            phi[j] += phi[j + 1]
+        if kused > 1:
+            # phi[j] += phi[j + 1] for j = kused - 1 .. 0 in one sequential pass (the same
+            # sums in the same order: IEEE addition is commutative)
+            rows = phi[kused::-1]
+            np.add.accumulate(rows, axis=0, out=rows)
+        else:
+            phi[0] += phi[1]
         self._set_weights(phi[0])
 
     # ------------------------------------------------------------ dense output
