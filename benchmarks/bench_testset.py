@@ -17,9 +17,16 @@ Columns: steps, residual evaluations (nre), mescd at t_end, median wall time ove
 With ``--variants`` pvgraph is also run with ``suppress_alg`` and ``NO_GROWTH_AFTER_FAILURE``
 switched (steps and mescd, to decide the defaults).
 
+With ``--spread`` each row also reports the median steps and mescd of pvgraph and IDA over
+the tolerances tol (1 + d), d in 0, +-1e-4, +-2e-4, +-5e-4, +-1e-3, +-2e-3 (rtol and atol
+scaled together). The step-size sequence of both solvers is chaotic in the last bit (HIRES at
+1e-8: 934-1223 steps and mescd 6.9-7.8 for pvgraph, 941-1157 and 7.0-8.4 for IDA over these
+11 tolerances), so a single tolerance can show differences of 2x in steps or 1.5 digits that
+are not there on the medians.
+
 Usage::
 
-    python benchmarks/bench_testset.py [--repeats 3] [--variants] [--problems hires,e5]
+    python benchmarks/bench_testset.py [--repeats 3] [--variants] [--spread] [--problems hires,e5]
 """
 
 from __future__ import annotations
@@ -41,20 +48,35 @@ from pvgraph.solver.testset import PROBLEMS, mescd  # noqa: E402
 
 TOLS = (1e-4, 1e-6, 1e-8)
 LONG_TOLS = (1e-4, 1e-6)
+SPREAD = (0.0, -1e-4, 1e-4, -2e-4, 2e-4, -5e-4, 5e-4, -1e-3, 1e-3, -2e-3, 2e-3)
 
 
-def run_pvgraph(p, tol, suppress_alg=None, no_growth=None):
-    """solve_dae with its defaults (the two options only when given)."""
+def run_pvgraph(p, tol, suppress_alg=None, no_growth=None, scale=1.0):
+    """solve_dae with its defaults (the two options only when given); atol times ``scale``."""
     kw = {} if suppress_alg is None else {"suppress_alg": suppress_alg}
     if no_growth is not None:
         kw["no_growth_after_failure"] = no_growth
     t = time.perf_counter()
-    res = solve_dae(p.residual, p.t_span, p.y0, p.yp0, rtol=tol, atol=p.atol(tol), jac=p.jac,
-                    algebraic=p.algebraic, calc_initial=None, max_steps=10**7, **kw)
+    res = solve_dae(p.residual, p.t_span, p.y0, p.yp0, rtol=tol * scale,
+                    atol=p.atol(tol) * scale, jac=p.jac, algebraic=p.algebraic,
+                    calc_initial=None, max_steps=10**7, **kw)
     return time.perf_counter() - t, res.stats["nsteps"], res.stats["nre"], res.y[-1]
 
 
-def make_ida(p, tol):
+def spread(p, tol):
+    """Median (steps, mescd) of pvgraph and of IDA over the tolerances tol (1 + SPREAD)."""
+    cells = []
+    for label, run in (("pvgraph", lambda s: run_pvgraph(p, tol, scale=s)),
+                       ("IDA", lambda s: make_ida(p, tol, scale=s)())):
+        outs = [run(1.0 + d) for d in SPREAD]
+        steps = statistics.median(o[1] for o in outs)
+        digits = statistics.median(mescd(o[3], p.y_ref, p.atol(tol), tol) for o in outs)
+        lo, hi = min(o[1] for o in outs), max(o[1] for o in outs)
+        cells.append(f"{label} {steps:.0f} ({lo}-{hi}) {digits:.2f}")
+    return "; ".join(cells)
+
+
+def make_ida(p, tol, scale=1.0):
     import sksundae
     n = p.y0.size
 
@@ -64,8 +86,8 @@ def make_ida(p, tol):
     def jacfn(t, y, yp, res, cj, jj):
         jj[:, :] = p.jac(t, y, yp, cj)
 
-    solver = sksundae.ida.IDA(resfn, jacfn=jacfn, rtol=tol,
-                              atol=np.full(n, p.atol(tol)), algebraic_idx=p.algebraic,
+    solver = sksundae.ida.IDA(resfn, jacfn=jacfn, rtol=tol * scale,
+                              atol=np.full(n, p.atol(tol) * scale), algebraic_idx=p.algebraic,
                               max_num_steps=10**7)
 
     def run():
@@ -146,6 +168,8 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--variants", action="store_true")
+    parser.add_argument("--spread", action="store_true",
+                        help="medians over tolerances perturbed by up to 0.2 %%")
     parser.add_argument("--problems", default=",".join(PROBLEMS))
     args = parser.parse_args()
     print(machine())
@@ -182,6 +206,9 @@ def main():
             if args.variants:
                 print(f"|   variants (S/s suppress_alg on/off, G/g no-growth on/off: steps "
                       f"mescd): {variants(p, tol)} |", flush=True)
+            if args.spread:
+                print(f"|   spread (median steps (range) and median mescd over "
+                      f"{len(SPREAD)} tolerances): {spread(p, tol)} |", flush=True)
     print(f"median wall ratio pvgraph/IDA {statistics.median(r_ida):.2f}, "
           f"pvgraph/IDAS {statistics.median(r_idas):.1f}")
 

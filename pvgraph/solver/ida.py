@@ -216,6 +216,7 @@ class IDAIntegrator:
         self.inv_n = 1.0 / n
         self.phi = np.zeros((max_order + 2, n))
         self.ee = np.zeros(n)
+        self._ee_norm = -1.0        # ||ee|| in the weighted norm when Newton took it, else -1
         self._err_rows = np.empty((2, n))     # scratch for the order k-1, k-2 estimates
         # counters over the whole integration
         self.nst = 0
@@ -314,8 +315,12 @@ class IDAIntegrator:
             if status == OK:
                 ew = self.ewt_err
                 ee = self.ee
-                v = ee * ew
-                enorm_k = math.sqrt(np.dot(v, v) * self.inv_n)
+                if self._ee_norm >= 0.0 and ew is self.ewt:
+                    # one Newton iteration: ee = -delta, whose norm Newton just took
+                    enorm_k = self._ee_norm
+                else:
+                    v = ee * ew
+                    enorm_k = math.sqrt(np.dot(v, v) * self.inv_n)
                 err_k = sigma[kk] * enorm_k
                 terr_k = (kk + 1) * err_k
                 knew = kk
@@ -472,6 +477,7 @@ class IDAIntegrator:
                 self.yy = yy
                 self.yp = yp
                 self.ee = ee
+                self._ee_norm = delnrm if m == 0 else -1.0
                 return OK
             self._fail = (NEWTON_FAIL, dw)
             if jcur:
@@ -561,8 +567,13 @@ class IDAIntegrator:
         if kused < maxord:
             phi[kused + 1] = ee
         phi[kused] += ee
-        for j in range(kused - 1, -1, -1):
-            phi[j] += phi[j + 1]
+        if kused > 1:
+            # phi[j] += phi[j + 1] for j = kused - 1 .. 0 in one sequential pass (the same
+            # sums in the same order: IEEE addition is commutative)
+            rows = phi[kused::-1]
+            np.add.accumulate(rows, axis=0, out=rows)
+        else:
+            phi[0] += phi[1]
         self._set_weights(phi[0])
 
     # ------------------------------------------------------------ dense output
