@@ -68,8 +68,14 @@ class _Equation:
     label: str       # human-readable description
 
 
-def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True):
+def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True,
+                    array_rows: bool | None = None):
     """Compile ``circuit`` to a :class:`~pvgraph.system.System`.
+
+    ``array_rows``: how rows of one shape (the same equation of many instances of a component
+    class) are evaluated: None (default) as arrays over their instances in big systems, True
+    as arrays whenever a shape repeats, False always as straight-line code (see
+    :func:`pvgraph.system.build_system`).
 
     Raises
     ------
@@ -85,13 +91,13 @@ def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True):
     enabled = gc.isenabled()
     gc.disable()
     try:
-        return _compile(circuit, eliminate_aliases)
+        return _compile(circuit, eliminate_aliases, array_rows)
     finally:
         if enabled:
             gc.enable()
 
 
-def _compile(circuit, eliminate_aliases):
+def _compile(circuit, eliminate_aliases, array_rows=None):
     leaves = _flatten(circuit)
     if not leaves:
         raise CircuitError(f"circuit {circuit.name!r} has no components")
@@ -121,7 +127,8 @@ def _compile(circuit, eliminate_aliases):
             mode_start.append(float(mstart))
 
     equations.extend(_connection_equations(circuit, leaves, infos))
-    _check_symbols(equations, infos, set(mode_names))
+    found = [E.leaves(eq.expr, ("sym", "der")) for eq in equations]
+    _check_symbols(equations, found, infos, set(mode_names))
 
     for name, info in registry.items():
         trace.values.setdefault(name, info.value)
@@ -129,14 +136,16 @@ def _compile(circuit, eliminate_aliases):
 
     subs: dict[str, tuple] = {}
     if eliminate_aliases:
-        equations = _eliminate_aliases(equations, infos, subs, trace.values)
+        equations = _eliminate_aliases(equations, infos, subs, trace.values, found)
+    del found
 
     from .index_reduction import given_starts, reduce_index
     equations, events, observed, reduction = reduce_index(equations, infos, subs, events,
                                                           observed, given_starts(leaves))
     from .system import build_system
     system = build_system(circuit.name, equations, infos, subs, observed, events, mode_names,
-                          mode_start, parameters=registry, tables=trace.tables)
+                          mode_start, parameters=registry, tables=trace.tables,
+                          array_rows=array_rows)
     system._circuit = circuit
     system._components = dict(leaves)
     system._models = {path: comp.params for path, comp in leaves}
@@ -287,9 +296,10 @@ def _signal_set(labels, specs, exposed):
                       f"signal {outputs[0]} drives {lab}") for lab in inputs]
 
 
-def _check_symbols(equations, infos, modes):
-    for eq in equations:
-        for op, name in E.leaves(eq.expr, ("sym", "der")):
+def _check_symbols(equations, found, infos, modes):
+    """Every symbol an equation reads is a variable or a mode (``found``: their leaves)."""
+    for eq, leaves in zip(equations, found):
+        for op, name in leaves:
             if name not in infos and name not in modes:
                 raise CircuitError(f"{eq.label} uses the unknown variable {name!r}")
             if op == "der" and name in modes:
@@ -410,19 +420,21 @@ def _kexpr(x):
     return x if isinstance(x, E.Expr) else E.const(x)
 
 
-def _eliminate_aliases(equations, infos, subs, values):
+def _eliminate_aliases(equations, infos, subs, values, found=None):
     """Remove unknowns defined by affine one- and two-variable equations (in place on subs).
 
     The unknown removed must have a constant coefficient, so that no parameter value can make
     the elimination divide by zero; the other coefficient and the offset may be parametric.
-    ``values`` holds the parameters' compile-time values (for carrying start values).
+    ``values`` holds the parameters' compile-time values (for carrying start values);
+    ``found`` the ``(op, name)`` leaves of each equation, if known.
     """
+    if found is None:
+        found = [E.leaves(eq.expr, ("sym", "der")) for eq in equations]
     used_der: set[str] = set()
     names_of = []   # the variables (values or derivatives) each equation reads
-    for eq in equations:
-        found = E.leaves(eq.expr, ("sym", "der"))
-        used_der.update(name for op, name in found if op == "der")
-        names_of.append({name for _, name in found})
+    for leaves in found:
+        used_der.update(name for op, name in leaves if op == "der")
+        names_of.append({name for _, name in leaves})
 
     def num(x):
         return x if isinstance(x, float) else E.evaluate(x, values)
@@ -454,7 +466,9 @@ def _eliminate_aliases(equations, infos, subs, values):
             eq, expr, names, fresh = item
             if any(nm in subs for nm in names):
                 expr = _apply(expr, subs, resolve)
-                names = {name for _, name in E.leaves(expr, ("sym", "der"))}
+                # the names it may read now (a superset where the substitution cancelled one)
+                names = {resolve(nm)[1] if nm in subs else nm for nm in names}
+                names.discard(None)
                 item[1], item[2], fresh = expr, names, True
             if not fresh:
                 keep.append(item)

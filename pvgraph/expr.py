@@ -665,26 +665,40 @@ def interp(table: Table, x) -> Expr:
 def postorder(roots: Iterable[Expr], limit: int | None = None):
     """Every node reachable from ``roots``, children before parents, each once.
 
-    With ``limit``, ``None`` as soon as there are more than ``limit`` nodes.
+    Depth first, children left to right. With ``limit``, ``None`` as soon as there are more
+    than ``limit`` nodes.
     """
     seen: set[int] = set()
     order: list[Expr] = []
+    add = seen.add
+    emit = order.append
     for root in roots:
-        stack = [(root, False)]
+        if id(root) in seen:
+            continue
+        add(id(root))
+        if not root.args:
+            emit(root)
+            continue
+        # each frame holds a node and the iterator over its children; a leaf child is emitted
+        # at once, an inner one gets a frame (the loop resumes the parent's iterator after it)
+        stack = [(root, iter(root.args))]
+        push = stack.append
         while stack:
-            node, expanded = stack.pop()
-            if expanded:
-                order.append(node)
-                continue
-            if id(node) in seen:
-                continue
-            seen.add(id(node))
-            if limit is not None and len(seen) > limit:
-                return None
-            stack.append((node, True))
-            for arg in reversed(node.args):
-                if id(arg) not in seen:
-                    stack.append((arg, False))
+            node, children = stack[-1]
+            for a in children:
+                if id(a) not in seen:
+                    add(id(a))
+                    if limit is not None and len(seen) > limit:
+                        return None
+                    if a.args:
+                        push((a, iter(a.args)))
+                        break
+                    emit(a)
+            else:
+                stack.pop()
+                emit(node)
+        if limit is not None and len(seen) > limit:
+            return None
     return order
 
 

@@ -88,6 +88,8 @@ class System:
 
     DENSE_MAX = 120  # above this many unknowns the Jacobian is handed to the solver sparse
     index_reduction = None  # the compiler's IndexReduction (pvgraph.index_reduction)
+    _vector = None          # rows evaluated as arrays (_ArrayPart), if any
+    _vecP: list = []        # per row group: its parameter slot arrays and derived arrays
 
     def __init__(self, name, names, differential, y0, nominal, units, descriptions, equations,
                  rows, cols, residual_fn, jac_fn, observed_fn, observed, event_fn, event_specs,
@@ -126,7 +128,6 @@ class System:
         self._models: dict = {}
         self._pindex: dict = {}
         self._tables: list = []
-        self._obs_exprs: dict = {}
         self._derive = None
         self._nbase = 0
         self._sources = sources
@@ -141,6 +142,8 @@ class System:
     def residual(self, t, y, yp):
         """F(t, y, y') as an array; NaN where an equation cannot be evaluated."""
         try:
+            if self._vector is not None:
+                return self._array_residual(t, y, yp)
             return np.array(self._res(t, y.tolist(), yp.tolist(), self.modes, self._P))
         except (ValueError, ZeroDivisionError, OverflowError):
             return np.full(self.n, np.nan)
@@ -148,9 +151,48 @@ class System:
     def jacobian_values(self, t, y, yp, c):
         """Values of dF/dy + c dF/dy' on the fixed pattern (CSC order)."""
         try:
+            if self._vector is not None:
+                return self._array_jacobian(t, y, yp, c)
             return np.array(self._jac(t, y.tolist(), yp.tolist(), self.modes, self._P, c))
         except (ValueError, ZeroDivisionError, OverflowError):
             return np.full(len(self._rows), np.nan)
+
+    def _array_residual(self, t, y, yp):
+        # Rows of repeated shapes are computed over arrays of their instances. numpy returns
+        # NaN or inf where the straight-line code raises (a square root of a negative number,
+        # a division by zero); such a result is reported like the exception, as all NaN.
+        part = self._vector
+        y = np.asarray(y, dtype=float)
+        yp = np.asarray(yp, dtype=float)
+        out = np.empty(self.n)
+        if len(part.scalar_rows):
+            out[part.scalar_rows] = self._res(t, y.tolist(), yp.tolist(), self.modes, self._P)
+        modes = np.asarray(self.modes, dtype=float) if part.uses_modes else None
+        with np.errstate(all="ignore"):
+            for g, P in zip(part.groups, self._vecP):
+                Y, YP, D = g.gather(y, yp, modes)
+                vals = g.res_fn(t, Y, YP, D, P)[0]
+                if not np.all(np.isfinite(vals)):
+                    raise ValueError("non-finite residual")
+                out[g.rows] = vals
+        return out
+
+    def _array_jacobian(self, t, y, yp, c):
+        part = self._vector
+        y = np.asarray(y, dtype=float)
+        yp = np.asarray(yp, dtype=float)
+        out = np.empty(len(self._rows))
+        if len(part.scalar_pos):
+            out[part.scalar_pos] = self._jac(t, y.tolist(), yp.tolist(), self.modes, self._P, c)
+        modes = np.asarray(self.modes, dtype=float) if part.uses_modes else None
+        with np.errstate(all="ignore"):
+            for g, P in zip(part.groups, self._vecP):
+                Y, YP, D = g.gather(y, yp, modes)
+                for pos, vals in zip(g.jac_pos, g.jac_fn(t, Y, YP, D, P, c)):
+                    if not np.all(np.isfinite(vals)):
+                        raise ValueError("non-finite Jacobian entry")
+                    out[pos] = vals
+        return out
 
     def jacobian(self, t, y, yp, c):
         """dF/dy + c dF/dy' as a sparse CSC matrix."""
@@ -402,6 +444,15 @@ class System:
             return
         try:
             values = self._derive(0.0, None, None, None, self._P)
+            if self._vector is not None:
+                P = np.array([v if isinstance(v, (int, float)) else np.nan
+                              for v in self._P[:len(self.parameters)]], dtype=float)
+                with np.errstate(all="ignore"):
+                    vecP = [g.params(P) for g in self._vector.groups]
+                for g, Pg in zip(self._vector.groups, vecP):
+                    if not all(np.all(np.isfinite(a)) for a in Pg[len(g.index["param"]):]):
+                        raise ValueError(f"a non-finite value in {g.label}")
+                self._vecP = vecP
         except (ValueError, ZeroDivisionError, OverflowError) as exc:
             raise ParameterError(f"{self.name}: the parameter values give an invalid derived "
                                  f"quantity ({exc}); check the values just set") from None
@@ -599,10 +650,21 @@ class System:
             for path, model in saved.items():
                 comps[path].params = model
 
+    @property
+    def _obs_exprs(self) -> dict:
+        """Derived outputs by name, as expressions of the unknowns and parameters."""
+        exprs = self._lazy.get("observed_exprs")
+        if exprs is None:
+            names, raw, leaf = self._lazy.pop("observed_raw", ((), (), None))
+            exprs = self._lazy["observed_exprs"] = dict(zip(names, E.substitute(list(raw), leaf)))
+        return exprs
+
     def _observed_fn(self):
         fn = self._lazy.get("observed_fn")
         if fn is None:
-            exprs, names = self._lazy["observed_exprs"]
+            exprs = self._obs_exprs
+            names = list(exprs)
+            exprs = list(exprs.values())
             src, tabs = codegen.generate("observed", exprs, flavour="array", extra_args=("P",),
                                          comments=names)
             self._lazy["observed_src"] = src
@@ -769,11 +831,14 @@ def _starts_of(comp, model) -> dict:
 
 
 def build_system(name, equations, infos, subs, observed, events, mode_names, mode_start,
-                 parameters=None, tables=()):
+                 parameters=None, tables=(), array_rows=None):
     """Number the unknowns and parameters, differentiate, generate code, run the checks.
 
     ``parameters`` maps the names of the runtime parameters to their
     :class:`~pvgraph.component.ParameterInfo`, in the order of the parameter vector.
+    ``array_rows``: None evaluates row shapes repeated at least ``ARRAY_MIN_GROUP`` times as
+    arrays in systems of at least ``ARRAY_MIN_ROWS`` rows; True does so for every shape shared
+    by two rows or more; False never (straight-line code only).
     """
     from .compiler import check_structure
 
@@ -823,42 +888,55 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     labels = [eq.label for eq in equations]
     del equations
 
+    # rows of one shape repeated often enough are evaluated as arrays over their instances;
+    # the others get straight-line code
+    groups, scalar_rows = _array_groups(res_exprs, array_rows)
+
     # every partial derivative of a row in one reverse pass over it
-    inc_y, inc_yp = [], []
+    inc_y: list = [None] * len(res_exprs)
+    inc_yp: list = [None] * len(res_exprs)
     entries = []
-    for i, r in enumerate(res_exprs):
-        grads = E.gradient(r, ("y", "yp"))
+    for i in scalar_rows:
+        grads = E.gradient(res_exprs[i], ("y", "yp"))
         dy, dyp = {}, {}
         for (op, k), d in grads.items():
             if op == "y":
                 dy[k] = d
             else:
                 dyp[k] = d
-        inc_y.append(sorted(dy))
-        inc_yp.append(sorted(dyp))
+        inc_y[i] = sorted(dy)
+        inc_yp[i] = sorted(dyp)
         for j in sorted(dy.keys() | dyp.keys()):
             d = dy.get(j, E.ZERO)
             if j in dyp:
                 d = d + E.CJ * dyp[j]
             entries.append(_Entry(i, j, d))
+    for g in groups:
+        g.differentiate()
+        for row, ys, yps in zip(g.rows.tolist(), g.payload_rows("y"), g.payload_rows("yp")):
+            inc_y[row] = sorted(ys)
+            inc_yp[row] = sorted(yps)
     differential = np.zeros(len(names), dtype=bool)
     for cols in inc_yp:
         differential[cols] = True
     check_structure(names, labels, inc_y, inc_yp, differential)
-    entries.sort(key=lambda en: (en.col, en.row))
+    del inc_y, inc_yp
+    if not groups:
+        entries.sort(key=lambda en: (en.col, en.row))
 
     # parametric subexpressions (constants and parameters only) are computed once per parameter
     # set, into P after the parameters and runtime tables, not at every call
     ev_exprs = E.substitute([ev.condition for _, ev in events], leaf) if events else []
     obs_names = list(observed)
-    obs_exprs = E.substitute([observed[nm][0] for nm in obs_names], leaf) if obs_names else []
     base = len(parameters) + len(tables)
-    groups = [res_exprs, [en.expr for en in entries], ev_exprs, obs_exprs]
-    (res_h, jac_h, ev_h, obs_h), derived = _hoist(groups, base)
+    scalar_res = [res_exprs[i] for i in scalar_rows] if groups else res_exprs
+    groups_h = [scalar_res, [en.expr for en in entries], ev_exprs]
+    (res_h, jac_h, ev_h), derived = _hoist(groups_h, base)
     der_src, der_tabs = codegen.generate("derive", derived, extra_args=("P",))
     derive_fn = codegen.compile_function("derive", der_src, der_tabs)
 
-    res_src, res_tabs = codegen.generate("residual", res_h, comments=labels,
+    res_src, res_tabs = codegen.generate("residual", res_h,
+                                         comments=[labels[i] for i in scalar_rows],
                                          extra_args=("P",))
     jac_src, jac_tabs = codegen.generate(
         "jacobian", jac_h, extra_args=("P", "c"),
@@ -871,16 +949,24 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     event_fn = codegen.compile_function("events", ev_src, ev_tabs)
 
     observed_fn = None   # generated when first needed (results are often read by name only)
+    sources = [der_src, res_src, jac_src, ev_src]
+
+    if groups:
+        rows, cols, vector = _array_layout(entries, groups, scalar_rows, len(res_exprs))
+        for k, g in enumerate(groups):
+            sources.append(g.generate(k, labels))
+    else:
+        rows, cols, vector = [en.row for en in entries], [en.col for en in entries], None
 
     system = System(
         name, names, differential,
         [infos[nm].start for nm in names], [infos[nm].nominal for nm in names],
         [infos[nm].unit for nm in names], [infos[nm].description for nm in names], labels,
-        [en.row for en in entries], [en.col for en in entries], residual_fn, jac_fn,
+        rows, cols, residual_fn, jac_fn,
         observed_fn, {nm: (observed[nm][1], observed[nm][2]) for nm in obs_names}, event_fn,
-        events, mode_names, mode_start, subs, [der_src, res_src, jac_src, ev_src])
+        events, mode_names, mode_start, subs, sources)
     system._alias_units = {nm: infos[nm].unit for nm in subs}
-    system._obs_exprs = dict(zip(obs_names, obs_exprs))
+    system._vector = vector
     system.parameters = parameters
     system._pindex = pindex
     system._P = [info.value if isinstance(info.value, tuple) else float(info.value)
@@ -890,7 +976,163 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     system._nbase = base
     system._update_derived()
     system._lazy["residual_exprs"] = res_exprs   # for dF/dp, differentiated when first asked
-    system._lazy["observed_exprs"] = (obs_h, obs_names)
+    # derived outputs are numbered and generated when first read
+    system._lazy["observed_raw"] = (obs_names, [observed[nm][0] for nm in obs_names], leaf)
     system._models = {}
     system.reset_modes()
     return system
+
+
+# rows evaluated as arrays ----------------------------------------------------------------------
+
+#: a circuit with at least this many residual rows evaluates repeated row shapes as arrays
+ARRAY_MIN_ROWS = 1000
+#: ... a shape shared by at least this many rows
+ARRAY_MIN_GROUP = 32
+
+
+class _ArrayRows:
+    """Residual rows of one shape: one template, evaluated over arrays of their instances.
+
+    ``rows`` are the row numbers; ``index[kind][s]`` is the array of payloads (unknown,
+    parameter or mode numbers) slot ``s`` of that kind takes in each instance.
+    """
+
+    def __init__(self, rows, leaves_per_row, expr):
+        self.rows = np.asarray(rows, dtype=np.int64)
+        self.index = {kind: [np.fromiter((lv[kind][s] for lv in leaves_per_row), dtype=np.int64,
+                                         count=len(rows))
+                             for s in range(len(leaves_per_row[0][kind]))]
+                      for kind in codegen.SLOT_LEAVES}
+        self.template = codegen.template(expr, leaves_per_row[0])
+        self.label = ""     # a row of the group, for messages
+        self.nderived = 0
+        self.columns = []   # (kind, slot) of each Jacobian column of the template
+        self.jac = []       # d row / d column (+ c d row / d column') per column
+        self.res_fn = self.jac_fn = self.derive_fn = None
+        self.jac_pos: list = []
+
+    def payload_rows(self, kind):
+        """Per instance, the payloads of the slots of ``kind`` (a list per row)."""
+        idx = self.index[kind]
+        if not idx:
+            return [()] * len(self.rows)
+        return np.stack(idx, axis=1).tolist()
+
+    def differentiate(self):
+        """The template's partial derivatives, merged per unknown as in scalar rows."""
+        grads = E.gradient(self.template, ("y", "yp"))
+        dy = {k: d for (op, k), d in grads.items() if op == "y"}
+        dyp = {k: d for (op, k), d in grads.items() if op == "yp"}
+        pairs = self._pairs()
+        merged = {s: y for s, y in pairs.items() if y >= 0}
+        for s in sorted(dy):
+            d = dy[s]
+            for sp, sy in merged.items():
+                if sy == s and sp in dyp:
+                    d = d + E.CJ * dyp[sp]
+            self.columns.append(("y", s))
+            self.jac.append(d)
+        for sp in sorted(dyp):
+            if sp in merged:
+                continue
+            self.columns.append(("yp", sp))
+            self.jac.append(E.ZERO + E.CJ * dyp[sp])
+
+    def _pairs(self):
+        """Derivative slot -> value slot reading the same unknown (-1: none), from instance 0."""
+        ys = {int(a[0]): s for s, a in enumerate(self.index["y"])}
+        return {s: ys.get(int(a[0]), -1) for s, a in enumerate(self.index["yp"])}
+
+    def generate(self, k, labels):
+        """Compile the template's residual, Jacobian and derived parameters; return the source."""
+        nparam = len(self.index["param"])
+        self.label = labels[self.rows[0]]
+        (res_h, jac_h), derived = _hoist([[self.template], self.jac], nparam)
+        self.nderived = len(derived)
+        head = (f"# rows of shape {k}: {len(self.rows)} instances, e.g. {labels[self.rows[0]]}; "
+                f"y[s] is the array of slot s over the instances")
+        srcs = []
+        for fname, roots, extra in ((f"derive_{k}", derived, ("P",)),
+                                    (f"residual_{k}", res_h, ("P",)),
+                                    (f"jacobian_{k}", jac_h, ("P", "c"))):
+            src, tabs = codegen.generate(fname, roots, flavour="array", extra_args=extra)
+            fn = codegen.compile_function(fname, src, tabs)
+            srcs.append(src)
+            if fname.startswith("derive"):
+                self.derive_fn = fn
+            elif fname.startswith("residual"):
+                self.res_fn = fn
+            else:
+                self.jac_fn = fn
+        return head + "\n" + "\n\n".join(srcs)
+
+    def gather(self, y, yp, modes):
+        """The slot arrays of one call: ``(y, yp, modes)`` lists."""
+        return ([y[i] for i in self.index["y"]], [yp[i] for i in self.index["yp"]],
+                [modes[i] for i in self.index["mode"]] if self.index["mode"] else ())
+
+    def params(self, P):
+        """Parameter slot arrays followed by the derived parametric arrays (``P`` numeric)."""
+        base = [P[i] for i in self.index["param"]]
+        if not self.nderived:
+            return base
+        return base + [np.broadcast_to(np.asarray(v, dtype=float), self.rows.shape)
+                       for v in self.derive_fn(0.0, None, None, None, base)]
+
+
+class _ArrayPart:
+    """How a system's residual and Jacobian values are assembled from its row groups."""
+
+    def __init__(self, groups, scalar_rows, scalar_pos, uses_modes):
+        self.groups = groups
+        self.scalar_rows = scalar_rows
+        self.scalar_pos = scalar_pos
+        self.uses_modes = uses_modes
+
+
+def _array_groups(res_exprs, array_rows):
+    """Split the rows into groups of one shape (evaluated as arrays) and the rest."""
+    if array_rows is False or (array_rows is None and len(res_exprs) < ARRAY_MIN_ROWS):
+        return [], list(range(len(res_exprs)))
+    min_group = 2 if array_rows is True else ARRAY_MIN_GROUP
+    by_shape: dict = {}
+    scalar = []
+    for i, r in enumerate(res_exprs):
+        shape = codegen.row_shape(r)
+        if shape is None:
+            scalar.append(i)
+            continue
+        by_shape.setdefault(shape[0], []).append((i, shape[1]))
+    groups = []
+    for members in by_shape.values():
+        if len(members) < min_group:
+            scalar.extend(i for i, _ in members)
+            continue
+        rows = [i for i, _ in members]
+        groups.append(_ArrayRows(rows, [lv for _, lv in members], res_exprs[rows[0]]))
+    scalar.sort()
+    return groups, scalar
+
+
+def _array_layout(entries, groups, scalar_rows, n_rows):
+    """The Jacobian pattern (CSC order) of scalar entries and groups, and where each goes."""
+    rows = [np.array([en.row for en in entries], dtype=np.int64)]
+    cols = [np.array([en.col for en in entries], dtype=np.int64)]
+    for g in groups:
+        for kind, s in g.columns:
+            rows.append(g.rows)
+            cols.append(g.index[kind][s])
+    all_rows, all_cols = np.concatenate(rows), np.concatenate(cols)
+    order = np.lexsort((all_rows, all_cols))
+    pos = np.empty(len(order), dtype=np.int64)
+    pos[order] = np.arange(len(order))
+    start = len(entries)
+    for g in groups:
+        for _ in g.columns:
+            g.jac_pos.append(pos[start:start + len(g.rows)])
+            start += len(g.rows)
+    uses_modes = any(g.index["mode"] for g in groups)
+    part = _ArrayPart(groups, np.asarray(scalar_rows, dtype=np.int64), pos[:len(entries)],
+                      uses_modes)
+    return all_rows[order], all_cols[order], part
