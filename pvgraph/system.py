@@ -160,7 +160,8 @@ class System:
     def _array_residual(self, t, y, yp):
         # Rows of repeated shapes are computed over arrays of their instances. numpy returns
         # NaN or inf where the straight-line code raises (a square root of a negative number,
-        # a division by zero); such a result is reported like the exception, as all NaN.
+        # a division by zero): such an entry becomes NaN, "cannot be evaluated", in its own row
+        # (the straight-line code, stopped by the exception, makes every row NaN).
         part = self._vector
         y = np.asarray(y, dtype=float)
         yp = np.asarray(yp, dtype=float)
@@ -171,11 +172,8 @@ class System:
         with np.errstate(all="ignore"):
             for g, P in zip(part.groups, self._vecP):
                 Y, YP, D = g.gather(y, yp, modes)
-                vals = g.res_fn(t, Y, YP, D, P)[0]
-                if not np.all(np.isfinite(vals)):
-                    raise ValueError("non-finite residual")
-                out[g.rows] = vals
-        return out
+                out[g.rows] = g.res_fn(t, Y, YP, D, P)[0]
+        return _nan_where_not_finite(out)
 
     def _array_jacobian(self, t, y, yp, c):
         part = self._vector
@@ -189,10 +187,8 @@ class System:
             for g, P in zip(part.groups, self._vecP):
                 Y, YP, D = g.gather(y, yp, modes)
                 for pos, vals in zip(g.jac_pos, g.jac_fn(t, Y, YP, D, P, c)):
-                    if not np.all(np.isfinite(vals)):
-                        raise ValueError("non-finite Jacobian entry")
                     out[pos] = vals
-        return out
+        return _nan_where_not_finite(out)
 
     def jacobian(self, t, y, yp, c):
         """dF/dy + c dF/dy' as a sparse CSC matrix."""
@@ -684,6 +680,13 @@ class System:
         return (f"<System {self.name}: {self.n} unknowns ({int(self.differential.sum())} "
                 f"differential), {len(self._rows)} Jacobian non-zeros, {len(self.event_specs)} "
                 f"events>")
+
+
+def _nan_where_not_finite(values):
+    bad = ~np.isfinite(values)
+    if bad.any():
+        values[bad] = np.nan
+    return values
 
 
 # helpers for parameters ----------------------------------------------------------------------
