@@ -173,15 +173,22 @@ def compile_function(name: str, source: str, tables: list):
 SLOT_LEAVES = ("y", "yp", "param", "mode")
 
 
-def row_shape(root: Expr):
+def _compiled_leaf(node):
+    return (node.op, node.value) if node.op in SLOT_LEAVES else None
+
+
+def row_shape(root: Expr, leaf_of=None):
     """``(shape, leaves)`` of a residual row, or None for a row that is not templated.
 
     ``shape`` is hashable and equal for two rows exactly when they are the same graph (node for
     node, shared nodes included) over the same constants, with leaves numbered per kind in order
     of first appearance: one template computes both. ``leaves`` maps each kind of
-    :data:`SLOT_LEAVES` to its payloads in slot order. Rows with table look-ups (a table per
-    instance) or unresolved symbols return None.
+    :data:`SLOT_LEAVES` to its payloads in slot order. ``leaf_of(node)`` gives the
+    ``(kind, payload)`` a leaf stands for (default: compiled leaves stand for themselves), or
+    None for a leaf that is not one of them. Rows with such leaves or table look-ups (a table
+    per instance) return None.
     """
+    leaf_of = leaf_of or _compiled_leaf
     num: dict[int, int] = {}
     sig: list = []
     slots: dict[tuple, int] = {}
@@ -189,44 +196,46 @@ def row_shape(root: Expr):
     for k, node in enumerate(postorder([root])):
         op = node.op
         num[id(node)] = k
-        if op in SLOT_LEAVES:
-            key = (op, node.value)
-            s = slots.get(key)
-            if s is None:
-                group = leaves[op]
-                s = slots[key] = len(group)
-                group.append(node.value)
-            sig.append((op, s))
+        if node.args:
+            if op in ("interp", "interp_d"):
+                return None
+            sig.append((op,) + tuple([num[id(a)] for a in node.args]))
         elif op == "const":
             v = node.value
             sig.append(("const", v if v != 0.0 else repr(v)))
         elif op == "time":
             sig.append(("time",))
-        elif not node.args:
-            return None   # sym, der, cj: not a compiled residual row
-        elif op in ("interp", "interp_d"):
-            return None
         else:
-            sig.append((op,) + tuple([num[id(a)] for a in node.args]))
+            key = leaf_of(node)
+            if key is None:
+                return None
+            s = slots.get(key)
+            if s is None:
+                group = leaves[key[0]]
+                s = slots[key] = len(group)
+                group.append(key[1])
+            sig.append((key[0], s))
     # which derivative slots read the same unknown as a value slot (their Jacobian entries merge)
     pairs = tuple(slots.get(("y", v), -1) for v in leaves["yp"])
     return (tuple(sig), pairs), leaves
 
 
-def template(root: Expr, leaves: dict) -> Expr:
+def template(root: Expr, leaves: dict, leaf_of=None) -> Expr:
     """A copy of ``root`` (node for node, no folding) whose leaves are slots, not payloads.
 
-    ``leaves`` is the second item of :func:`row_shape` for ``root``: leaf ``y[j]`` becomes
-    ``y[s]`` where ``j`` is the payload of slot ``s``, and so on for ``yp``, ``param``, ``mode``.
+    ``leaves`` and ``leaf_of`` are those of :func:`row_shape` for ``root``: a leaf standing
+    for ``y[j]`` becomes ``y[s]`` where ``j`` is the payload of slot ``s``, and so on for
+    ``yp``, ``param`` and ``mode``.
     """
+    leaf_of = leaf_of or _compiled_leaf
     slot = {(op, v): s for op, vals in leaves.items() for s, v in enumerate(vals)}
     memo: dict[int, Expr] = {}
     for node in postorder([root]):
-        op = node.op
-        if op in SLOT_LEAVES:
-            memo[id(node)] = Expr(op, (), slot[(op, node.value)])
-        elif not node.args:
+        if node.args:
+            memo[id(node)] = Expr(node.op, tuple([memo[id(a)] for a in node.args]), node.value)
+        elif node.op in ("const", "time"):
             memo[id(node)] = node
         else:
-            memo[id(node)] = Expr(op, tuple([memo[id(a)] for a in node.args]), node.value)
+            key = leaf_of(node)
+            memo[id(node)] = Expr(key[0], (), slot[key])
     return memo[id(root)]

@@ -505,11 +505,12 @@ def is_const(e: Expr, value: float | None = None) -> bool:
 
 
 def _add(a, b):
-    if is_const(a) and is_const(b):
-        return const(a.value + b.value)
-    if is_const(a, 0.0):
-        return b
-    if is_const(b, 0.0):
+    if a.op == "const":
+        if b.op == "const":
+            return const(a.value + b.value)
+        if a.value == 0.0:
+            return b
+    elif b.op == "const" and b.value == 0.0:
         return a
     if b.op == "neg":
         return _sub(a, b.args[0])
@@ -517,11 +518,12 @@ def _add(a, b):
 
 
 def _sub(a, b):
-    if is_const(a) and is_const(b):
-        return const(a.value - b.value)
-    if is_const(b, 0.0):
-        return a
-    if is_const(a, 0.0):
+    if b.op == "const":
+        if a.op == "const":
+            return const(a.value - b.value)
+        if b.value == 0.0:
+            return a
+    elif a.op == "const" and a.value == 0.0:
         return _neg(b)
     if b.op == "neg":
         return _add(a, b.args[0])
@@ -531,20 +533,26 @@ def _sub(a, b):
 
 
 def _mul(a, b):
-    if is_const(a) and is_const(b):
-        return const(a.value * b.value)
-    if is_const(a, 0.0) or is_const(b, 0.0):
-        return ZERO
-    if is_const(a, 1.0):
-        return b
-    if is_const(b, 1.0):
-        return a
-    if is_const(a, -1.0):
-        return _neg(b)
-    if is_const(b, -1.0):
-        return _neg(a)
-    if is_const(b):
-        a, b = b, a  # constants first: reads like physics, k * x
+    if a.op == "const":
+        if b.op == "const":
+            return const(a.value * b.value)
+        v = a.value
+        if v == 0.0:
+            return ZERO
+        if v == 1.0:
+            return b
+        if v == -1.0:
+            return _neg(b)
+        return Expr("mul", (a, b))
+    if b.op == "const":
+        v = b.value
+        if v == 0.0:
+            return ZERO
+        if v == 1.0:
+            return a
+        if v == -1.0:
+            return _neg(a)
+        return Expr("mul", (b, a))  # constants first: reads like physics, k * x
     if a.op == "neg" and b.op == "neg":
         return _mul(a.args[0], b.args[0])
     return Expr("mul", (a, b))

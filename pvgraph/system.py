@@ -90,6 +90,8 @@ class System:
     index_reduction = None  # the compiler's IndexReduction (pvgraph.index_reduction)
     _vector = None          # rows evaluated as arrays (_ArrayPart), if any
     _vecP: list = []        # per row group: its parameter slot arrays and derived arrays
+    _ev_vector = None       # events evaluated as arrays (_ArrayPart), if any
+    _ev_vecP: list = []
 
     def __init__(self, name, names, differential, y0, nominal, units, descriptions, equations,
                  rows, cols, residual_fn, jac_fn, observed_fn, observed, event_fn, event_specs,
@@ -248,15 +250,34 @@ class System:
 
     def event_values(self, t, y, yp):
         """Every event function at one point."""
+        if self._ev_vector is not None:
+            return self._array_events(t, y, yp)
         return self._event_fn(t, y.tolist(), yp.tolist(), self.modes, self._P)
+
+    def _array_events(self, t, y, yp):
+        part = self._ev_vector
+        y = np.asarray(y, dtype=float)
+        yp = np.asarray(yp, dtype=float)
+        out = np.empty(len(self.event_specs))
+        if len(part.scalar_rows):
+            out[part.scalar_rows] = self._event_fn(t, y.tolist(), yp.tolist(), self.modes,
+                                                   self._P)
+        modes = np.asarray(self.modes, dtype=float) if part.uses_modes else None
+        with np.errstate(all="ignore"):
+            for g, P in zip(part.groups, self._ev_vecP):
+                Y, YP, D = g.gather(y, yp, modes)
+                out[g.rows] = g.res_fn(t, Y, YP, D, P)[0]
+        return out
 
     def solver_events(self):
         """The declared events as :class:`pvgraph.solver.Event` objects bound to this system."""
         from .solver import Event
         fn, modes, P = self._event_fn, self.modes, self._P
-
-        def g_all(t, y, yp):
-            return fn(t, y.tolist(), yp.tolist(), modes, P)
+        if self._ev_vector is not None:
+            g_all = self._array_events
+        else:
+            def g_all(t, y, yp):
+                return fn(t, y.tolist(), yp.tolist(), modes, P)
 
         out = []
         for k, (path, spec) in enumerate(self.event_specs):
@@ -279,6 +300,8 @@ class System:
         P = self._P
 
         def g(t, y, yp):
+            if self._ev_vector is not None:
+                return g_all(t, y, yp)[k]
             return fn(t, y.tolist(), yp.tolist(), modes, P)[k]
 
         g.vector = (g_all, k)   # the solver evaluates every event in one call of g_all
@@ -440,19 +463,28 @@ class System:
             return
         try:
             values = self._derive(0.0, None, None, None, self._P)
-            if self._vector is not None:
-                P = np.array([v if isinstance(v, (int, float)) else np.nan
-                              for v in self._P[:len(self.parameters)]], dtype=float)
-                with np.errstate(all="ignore"):
-                    vecP = [g.params(P) for g in self._vector.groups]
-                for g, Pg in zip(self._vector.groups, vecP):
-                    if not all(np.all(np.isfinite(a)) for a in Pg[len(g.index["param"]):]):
-                        raise ValueError(f"a non-finite value in {g.label}")
-                self._vecP = vecP
+            if self._vector is not None or self._ev_vector is not None:
+                self._vecP, self._ev_vecP = self._array_params()
         except (ValueError, ZeroDivisionError, OverflowError) as exc:
             raise ParameterError(f"{self.name}: the parameter values give an invalid derived "
                                  f"quantity ({exc}); check the values just set") from None
         self._P[self._nbase:] = values
+
+    def _array_params(self):
+        """Parameter and derived arrays of the row groups of the residual and the events."""
+        P = np.array([v if isinstance(v, (int, float)) else np.nan
+                      for v in self._P[:len(self.parameters)]], dtype=float)
+        out = []
+        for part in (self._vector, self._ev_vector):
+            per_group = []
+            for g in part.groups if part is not None else ():
+                with np.errstate(all="ignore"):
+                    Pg = g.params(P)
+                if not all(np.all(np.isfinite(a)) for a in Pg[len(g.index["param"]):]):
+                    raise ValueError(f"a non-finite value in {g.label}")
+                per_group.append(Pg)
+            out.append(per_group)
+        return out
 
     def params_from(self, circuit) -> dict[str, float]:
         """The runtime parameter values of ``circuit``, built like the one compiled.
@@ -562,7 +594,11 @@ class System:
 
     def _generate_dfdp(self):
         entries = []
-        for i, r in enumerate(self._lazy.pop("residual_exprs")):
+        exprs = self._lazy.pop("residual_exprs", None)
+        if exprs is None:
+            raw, leaf = self._lazy.pop("residual_raw")
+            exprs = E.substitute(raw, leaf)
+        for i, r in enumerate(exprs):
             for (op, k), d in E.gradient(r, ("param",)).items():
                 if not E.is_const(d, 0.0):
                     entries.append((i, k, d))
@@ -887,20 +923,39 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
                                                                           index[target])
         return param_leaf(node)
 
-    res_exprs = E.substitute([eq.expr for eq in equations], leaf)
+    def compiled_leaf(node):
+        # the (kind, payload) of the single compiled leaf a traced leaf becomes, if it is one
+        op = node.op
+        if op == "sym":
+            if node.value in index:
+                return "y", index[node.value]
+            if node.value in mode_index:
+                return "mode", mode_index[node.value]
+        elif op == "der":
+            if node.value in index:
+                return "yp", index[node.value]
+        elif op == "param" and isinstance(node.value, str):
+            return "param", pindex[node.value]
+        return None
+
+    raw = [eq.expr for eq in equations]
     labels = [eq.label for eq in equations]
     del equations
 
-    # rows of one shape repeated often enough are evaluated as arrays over their instances;
-    # the others get straight-line code
-    groups, scalar_rows = _array_groups(res_exprs, array_rows)
+    # rows of one shape repeated often enough are evaluated as arrays over their instances
+    # (templated from the traced rows directly); the others get straight-line code
+    groups, scalar_rows = _array_groups(raw, array_rows, compiled_leaf)
+    if groups:
+        scalar_res = E.substitute([raw[i] for i in scalar_rows], leaf)
+    else:
+        scalar_res = E.substitute(raw, leaf)
 
     # every partial derivative of a row in one reverse pass over it
-    inc_y: list = [None] * len(res_exprs)
-    inc_yp: list = [None] * len(res_exprs)
+    inc_y: list = [None] * len(raw)
+    inc_yp: list = [None] * len(raw)
     entries = []
-    for i in scalar_rows:
-        grads = E.gradient(res_exprs[i], ("y", "yp"))
+    for i, r in zip(scalar_rows, scalar_res):
+        grads = E.gradient(r, ("y", "yp"))
         dy, dyp = {}, {}
         for (op, k), d in grads.items():
             if op == "y":
@@ -927,12 +982,15 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     if not groups:
         entries.sort(key=lambda en: (en.col, en.row))
 
+    # events: repeated shapes as arrays too
+    ev_raw = [ev.condition for _, ev in events]
+    ev_groups, ev_scalar = _array_groups(ev_raw, array_rows, compiled_leaf, len(raw))
+    ev_exprs = E.substitute([ev_raw[i] for i in ev_scalar], leaf) if ev_scalar else []
+
     # parametric subexpressions (constants and parameters only) are computed once per parameter
     # set, into P after the parameters and runtime tables, not at every call
-    ev_exprs = E.substitute([ev.condition for _, ev in events], leaf) if events else []
     obs_names = list(observed)
     base = len(parameters) + len(tables)
-    scalar_res = [res_exprs[i] for i in scalar_rows] if groups else res_exprs
     groups_h = [scalar_res, [en.expr for en in entries], ev_exprs]
     (res_h, jac_h, ev_h), derived = _hoist(groups_h, base)
     der_src, der_tabs = codegen.generate("derive", derived, extra_args=("P",))
@@ -947,19 +1005,25 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     residual_fn = codegen.compile_function("residual", res_src, res_tabs)
     jac_fn = codegen.compile_function("jacobian", jac_src, jac_tabs)
 
+    ev_labels = [f"{p}.{ev.name}" for p, ev in events]
     ev_src, ev_tabs = codegen.generate("events", ev_h, extra_args=("P",),
-                                       comments=[f"{p}.{ev.name}" for p, ev in events])
+                                       comments=[ev_labels[i] for i in ev_scalar])
     event_fn = codegen.compile_function("events", ev_src, ev_tabs)
 
     observed_fn = None   # generated when first needed (results are often read by name only)
     sources = [der_src, res_src, jac_src, ev_src]
 
     if groups:
-        rows, cols, vector = _array_layout(entries, groups, scalar_rows, len(res_exprs))
+        rows, cols, vector = _array_layout(entries, groups, scalar_rows)
         for k, g in enumerate(groups):
-            sources.append(g.generate(k, labels))
+            sources.append(g.generate(f"{k}", labels))
     else:
         rows, cols, vector = [en.row for en in entries], [en.col for en in entries], None
+    ev_vector = None
+    if ev_groups:
+        ev_vector = _ArrayPart(ev_groups, np.asarray(ev_scalar, dtype=np.int64), None)
+        for k, g in enumerate(ev_groups):
+            sources.append(g.generate(f"events_{k}", ev_labels, jacobian=False))
 
     system = System(
         name, names, differential,
@@ -970,6 +1034,7 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
         events, mode_names, mode_start, subs, sources)
     system._alias_units = {nm: infos[nm].unit for nm in subs}
     system._vector = vector
+    system._ev_vector = ev_vector
     system.parameters = parameters
     system._pindex = pindex
     system._P = [info.value if isinstance(info.value, tuple) else float(info.value)
@@ -978,7 +1043,11 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     system._derive = derive_fn
     system._nbase = base
     system._update_derived()
-    system._lazy["residual_exprs"] = res_exprs   # for dF/dp, differentiated when first asked
+    # for dF/dp, numbered and differentiated when first asked
+    if groups:
+        system._lazy["residual_raw"] = (raw, leaf)
+    else:
+        system._lazy["residual_exprs"] = scalar_res
     # derived outputs are numbered and generated when first read
     system._lazy["observed_raw"] = (obs_names, [observed[nm][0] for nm in obs_names], leaf)
     system._models = {}
@@ -1001,18 +1070,18 @@ class _ArrayRows:
     parameter or mode numbers) slot ``s`` of that kind takes in each instance.
     """
 
-    def __init__(self, rows, leaves_per_row, expr):
+    def __init__(self, rows, leaves_per_row, expr, leaf_of=None):
         self.rows = np.asarray(rows, dtype=np.int64)
         self.index = {kind: [np.fromiter((lv[kind][s] for lv in leaves_per_row), dtype=np.int64,
                                          count=len(rows))
                              for s in range(len(leaves_per_row[0][kind]))]
                       for kind in codegen.SLOT_LEAVES}
-        self.template = codegen.template(expr, leaves_per_row[0])
+        self.template = codegen.template(expr, leaves_per_row[0], leaf_of)
         self.label = ""     # a row of the group, for messages
         self.nderived = 0
         self.columns = []   # (kind, slot) of each Jacobian column of the template
         self.jac = []       # d row / d column (+ c d row / d column') per column
-        self.res_fn = self.jac_fn = self.derive_fn = None
+        self.res_fn = self.jac_fn = self.der_fn = None
         self.jac_pos: list = []
 
     def payload_rows(self, kind):
@@ -1047,27 +1116,26 @@ class _ArrayRows:
         ys = {int(a[0]): s for s, a in enumerate(self.index["y"])}
         return {s: ys.get(int(a[0]), -1) for s, a in enumerate(self.index["yp"])}
 
-    def generate(self, k, labels):
-        """Compile the template's residual, Jacobian and derived parameters; return the source."""
+    def generate(self, k, labels, jacobian=True):
+        """Compile the template's residual, Jacobian and derived parameters; return the source.
+
+        ``k`` names the functions (``residual_k``...); ``labels`` are the rows' labels.
+        """
         nparam = len(self.index["param"])
         self.label = labels[self.rows[0]]
         (res_h, jac_h), derived = _hoist([[self.template], self.jac], nparam)
         self.nderived = len(derived)
-        head = (f"# rows of shape {k}: {len(self.rows)} instances, e.g. {labels[self.rows[0]]}; "
+        head = (f"# rows of shape {k}: {len(self.rows)} instances, e.g. {self.label}; "
                 f"y[s] is the array of slot s over the instances")
+        parts = [("derive", derived, ("P",)), ("residual", res_h, ("P",))]
+        if jacobian:
+            parts.append(("jacobian", jac_h, ("P", "c")))
         srcs = []
-        for fname, roots, extra in ((f"derive_{k}", derived, ("P",)),
-                                    (f"residual_{k}", res_h, ("P",)),
-                                    (f"jacobian_{k}", jac_h, ("P", "c"))):
+        for what, roots, extra in parts:
+            fname = f"{what}_{k}"
             src, tabs = codegen.generate(fname, roots, flavour="array", extra_args=extra)
-            fn = codegen.compile_function(fname, src, tabs)
+            setattr(self, f"{what[:3]}_fn", codegen.compile_function(fname, src, tabs))
             srcs.append(src)
-            if fname.startswith("derive"):
-                self.derive_fn = fn
-            elif fname.startswith("residual"):
-                self.res_fn = fn
-            else:
-                self.jac_fn = fn
         return head + "\n" + "\n\n".join(srcs)
 
     def gather(self, y, yp, modes):
@@ -1081,28 +1149,36 @@ class _ArrayRows:
         if not self.nderived:
             return base
         return base + [np.broadcast_to(np.asarray(v, dtype=float), self.rows.shape)
-                       for v in self.derive_fn(0.0, None, None, None, base)]
+                       for v in self.der_fn(0.0, None, None, None, base)]
 
 
 class _ArrayPart:
-    """How a system's residual and Jacobian values are assembled from its row groups."""
+    """How a system's residual (or events) and Jacobian values are assembled from row groups.
 
-    def __init__(self, groups, scalar_rows, scalar_pos, uses_modes):
+    ``scalar_rows`` are the rows of the straight-line code, ``scalar_pos`` the places of its
+    Jacobian values in the pattern.
+    """
+
+    def __init__(self, groups, scalar_rows, scalar_pos=None):
         self.groups = groups
         self.scalar_rows = scalar_rows
         self.scalar_pos = scalar_pos
-        self.uses_modes = uses_modes
+        self.uses_modes = any(g.index["mode"] for g in groups)
 
 
-def _array_groups(res_exprs, array_rows):
-    """Split the rows into groups of one shape (evaluated as arrays) and the rest."""
-    if array_rows is False or (array_rows is None and len(res_exprs) < ARRAY_MIN_ROWS):
-        return [], list(range(len(res_exprs)))
+def _array_groups(exprs, array_rows, leaf_of=None, n_rows=None):
+    """Split rows into groups of one shape (evaluated as arrays) and the rest.
+
+    ``n_rows`` (default ``len(exprs)``) is the size of the system, for the automatic choice.
+    """
+    size = len(exprs) if n_rows is None else n_rows
+    if not exprs or array_rows is False or (array_rows is None and size < ARRAY_MIN_ROWS):
+        return [], list(range(len(exprs)))
     min_group = 2 if array_rows is True else ARRAY_MIN_GROUP
     by_shape: dict = {}
     scalar = []
-    for i, r in enumerate(res_exprs):
-        shape = codegen.row_shape(r)
+    for i, r in enumerate(exprs):
+        shape = codegen.row_shape(r, leaf_of)
         if shape is None:
             scalar.append(i)
             continue
@@ -1113,12 +1189,12 @@ def _array_groups(res_exprs, array_rows):
             scalar.extend(i for i, _ in members)
             continue
         rows = [i for i, _ in members]
-        groups.append(_ArrayRows(rows, [lv for _, lv in members], res_exprs[rows[0]]))
+        groups.append(_ArrayRows(rows, [lv for _, lv in members], exprs[rows[0]], leaf_of))
     scalar.sort()
     return groups, scalar
 
 
-def _array_layout(entries, groups, scalar_rows, n_rows):
+def _array_layout(entries, groups, scalar_rows):
     """The Jacobian pattern (CSC order) of scalar entries and groups, and where each goes."""
     rows = [np.array([en.row for en in entries], dtype=np.int64)]
     cols = [np.array([en.col for en in entries], dtype=np.int64)]
@@ -1135,7 +1211,5 @@ def _array_layout(entries, groups, scalar_rows, n_rows):
         for _ in g.columns:
             g.jac_pos.append(pos[start:start + len(g.rows)])
             start += len(g.rows)
-    uses_modes = any(g.index["mode"] for g in groups)
-    part = _ArrayPart(groups, np.asarray(scalar_rows, dtype=np.int64), pos[:len(entries)],
-                      uses_modes)
+    part = _ArrayPart(groups, np.asarray(scalar_rows, dtype=np.int64), pos[:len(entries)])
     return all_rows[order], all_cols[order], part

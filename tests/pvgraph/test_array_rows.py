@@ -71,7 +71,7 @@ def _close(a, b):
     return np.all(np.abs(a - b) <= RTOL * scale + 1e-300)
 
 
-@pytest.mark.filterwarnings("ignore::pvgraph.errors.PlausibilityWarning")  # the machine's
+@pytest.mark.filterwarnings("ignore::pvgraph.errors.PlausibilityWarning")  # machine: by design
 @pytest.mark.parametrize("build", [lambda: chain(40), lambda: wide(30), rig, machine],
                          ids=["chain", "wide", "pvg32_rig", "machine"])
 def test_array_rows_give_the_residual_and_jacobian_of_straight_line_code(build):
