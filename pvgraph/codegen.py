@@ -190,21 +190,30 @@ def row_shape(root: Expr, leaf_of=None):
     """
     leaf_of = leaf_of or _compiled_leaf
     num: dict[int, int] = {}
+    # the shape is a flat token sequence: an operation followed by its children's positions,
+    # "const" and its value, a leaf kind and its slot (prefix-free, since arities are fixed)
     sig: list = []
+    put = sig.append
     slots: dict[tuple, int] = {}
     leaves: dict[str, list] = {"y": [], "yp": [], "param": [], "mode": []}
     for k, node in enumerate(postorder([root])):
-        op = node.op
         num[id(node)] = k
-        if node.args:
-            if op in ("interp", "interp_d"):
+        args = node.args
+        if args:
+            op = node.op
+            if op == "interp" or op == "interp_d":
                 return None
-            sig.append((op,) + tuple([num[id(a)] for a in node.args]))
-        elif op == "const":
+            put(op)
+            for a in args:
+                put(num[id(a)])
+            continue
+        op = node.op
+        if op == "const":
             v = node.value
-            sig.append(("const", v if v != 0.0 else repr(v)))
+            put("const")
+            put(v if v != 0.0 else repr(v))
         elif op == "time":
-            sig.append(("time",))
+            put("time")
         else:
             key = leaf_of(node)
             if key is None:
@@ -214,7 +223,8 @@ def row_shape(root: Expr, leaf_of=None):
                 group = leaves[key[0]]
                 s = slots[key] = len(group)
                 group.append(key[1])
-            sig.append((key[0], s))
+            put(key[0])
+            put(s)
     # which derivative slots read the same unknown as a value slot (their Jacobian entries merge)
     pairs = tuple(slots.get(("y", v), -1) for v in leaves["yp"])
     return (tuple(sig), pairs), leaves

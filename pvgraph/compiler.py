@@ -260,7 +260,7 @@ def _connection_equations(root, leaves, infos) -> list[_Equation]:
                 f"port {labels[0]!r} ({domain.name}) is not connected{via}. Connect it to "
                 f"another port, or close it explicitly (a Plug for a hydraulic port, a Fixed "
                 f"for a mechanical one).")
-        node_label = "node{" + ", ".join(labels) + "}"
+        node_label = _node_label(labels)
         across = [E.Expr("sym", (), f"{lab}.{domain.across}") for lab in labels]
         through = [E.Expr("sym", (), f"{lab}.{domain.through}") for lab in labels]
         for lab, a in zip(labels[1:], across[1:]):
@@ -272,6 +272,15 @@ def _connection_equations(root, leaves, infos) -> list[_Equation]:
         equations.append(_Equation(total, node_label,
                                    f"{node_label}: sum of {domain.through} is zero"))
     return equations
+
+
+def _node_label(labels):
+    """``node{a.p, b.p, ...}`` naming a connection set; a wide one by a few ports and a count
+    (every equation of the set carries the label)."""
+    if len(labels) <= NAMES_IN_MESSAGES:
+        return "node{" + ", ".join(labels) + "}"
+    return ("node{" + ", ".join(labels[:NAMES_IN_MESSAGES - 2]) +
+            f", ... ({len(labels) - NAMES_IN_MESSAGES + 1} more), {labels[-1]}}}")
 
 
 class _PortKey:
@@ -314,6 +323,11 @@ def _affine(e: E.Expr):
     Coefficients and the constant are floats, or parametric expressions (constants and runtime
     parameters) where they depend on parameters.
     """
+    if e.op in ("add", "sub"):   # the common case: a connection equality or flow balance
+        a, b = e.args
+        if a.op == "sym" and b.op == "sym" and a.value != b.value and "#" not in a.value \
+                and "#" not in b.value:
+            return {a.value: 1.0, b.value: 1.0 if e.op == "add" else -1.0}, 0.0
     nodes = E.postorder([e], MAX_AFFINE_NODES)
     if nodes is None:
         return None
