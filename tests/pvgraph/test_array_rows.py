@@ -113,14 +113,17 @@ def test_array_rows_keep_runtime_parameters_and_dF_dp():
     assert _close(arrays.residual(0.0, y, yp), plain.residual(0.0, y, yp))
 
 
-def test_chain_with_array_rows_carries_the_pump_flow_through_every_orifice():
+@pytest.mark.parametrize("solver", ["pvgraph", "ida"])
+def test_chain_with_array_rows_carries_the_pump_flow_through_every_orifice(solver):
     """Steady flow through the series chain: every orifice passes the pump flow (continuity)."""
+    if solver == "ida":
+        pytest.importorskip("sksundae")
     q = lpm(10)
     circuit = chain(40, q)
     arrays = circuit.compile(array_rows=True)
     plain = circuit.compile(array_rows=False)
-    ra = simulate(arrays, 0.5, rtol=1e-7)
-    rp = simulate(plain, 0.5, rtol=1e-7)
+    ra = simulate(arrays, 0.5, rtol=1e-7, solver=solver)
+    rp = simulate(plain, 0.5, rtol=1e-7, solver=solver)
     assert len(ra.t) == len(rp.t)
     for k in (0, 17, 39):
         flows = ra[f"o{k}.q"]
@@ -158,3 +161,21 @@ def test_array_rows_are_chosen_only_for_big_systems(monkeypatch):
     # five volumes and five orifices: groups of at least four rows of one shape
     assert all(len(g.rows) >= 4 for g in big._vector.groups)
     assert "rows of shape 0" in big.source()
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")   # the cavitation warning is the point here
+def test_an_event_of_an_array_group_fires_as_in_straight_line_code():
+    """A pump sucking from the chain drains the first volume to the vapour pressure: its
+    cavitation event switches its mode, at the same time in both paths."""
+    from pvgraph.components.hydraulic.volumes import P_ATM
+    circuit = chain(40, q=-lpm(60))
+    arrays = circuit.compile(array_rows=True)
+    plain = circuit.compile(array_rows=False)
+    assert arrays._ev_vector is not None
+    ra, rp = simulate(arrays, 0.2), simulate(plain, 0.2)
+    switched = [(t, modes.index(1.0)) for t, modes in arrays.mode_log[1:] if 1.0 in modes]
+    assert switched and switched[0][1] == arrays.mode_names.index("v0.#cavitated")
+    assert [t for t, _ in arrays.mode_log] == [t for t, _ in plain.mode_log]
+    p0 = ra["v0.port.p"][-1]
+    assert -P_ATM < p0 < -0.9 * P_ATM        # held just above the vapour pressure (absolute ~ 0)
+    assert abs(p0 - rp["v0.port.p"][-1]) <= 1e-9 * P_ATM
