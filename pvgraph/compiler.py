@@ -19,8 +19,10 @@ Pipeline
    move the parametric subexpressions into a ``derive`` function evaluated once per parameter
    set, and emit the residual, the Jacobian values on a fixed sparse pattern, all event
    functions as one function, and (when first needed) the derived outputs and dF/dp as
-   generated Python (:mod:`pvgraph.codegen`). Every stage costs time linear in the size of the
-   circuit, connection sets of any width included.
+   generated Python (:mod:`pvgraph.codegen`). In big systems, rows of one shape (the same
+   equation of many instances of a component class) are differentiated and generated once and
+   evaluated over arrays of their instances (``array_rows``). Every stage costs time linear in
+   the size of the circuit, connection sets of any width included.
 
 Parallel volumes on one node need no special treatment: the node's pressure is one unknown after
 alias elimination, each volume contributes its own flow unknown, and the DAE stays index one.
