@@ -602,9 +602,14 @@ class System:
     def _generate_dfdp(self):
         entries = []
         exprs = self._lazy.pop("residual_exprs", None)
-        if exprs is None:
-            raw, leaf = self._lazy.pop("residual_raw")
-            exprs = E.substitute(raw, leaf)
+        if exprs is None:   # rows of array groups are rebuilt from their templates
+            scalar_rows, scalar_res = self._lazy.pop("residual_scalar")
+            exprs = [None] * self.n
+            for i, r in zip(scalar_rows, scalar_res):
+                exprs[i] = r
+            for g in self._vector.groups:
+                for i, r in zip(g.rows.tolist(), g.instances()):
+                    exprs[i] = r
         for i, r in enumerate(exprs):
             for (op, k), d in E.gradient(r, ("param",)).items():
                 if not E.is_const(d, 0.0):
@@ -1052,7 +1057,7 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     system._update_derived()
     # for dF/dp, numbered and differentiated when first asked
     if groups:
-        system._lazy["residual_raw"] = (raw, leaf)
+        system._lazy["residual_scalar"] = (scalar_rows, scalar_res)
     else:
         system._lazy["residual_exprs"] = scalar_res
     # derived outputs are numbered and generated when first read
@@ -1090,6 +1095,25 @@ class _ArrayRows:
         self.jac = []       # d row / d column (+ c d row / d column') per column
         self.res_fn = self.jac_fn = self.der_fn = None
         self.jac_pos: list = []
+
+    def instances(self):
+        """The rows as expressions of the unknowns and parameters, rebuilt from the template."""
+        order = E.postorder([self.template])
+        payload = {kind: np.stack(idx, axis=1).tolist() if idx else None
+                   for kind, idx in self.index.items()}
+        out = []
+        for k in range(len(self.rows)):
+            memo: dict[int, E.Expr] = {}
+            for node in order:
+                if node.args:
+                    memo[id(node)] = E.Expr(node.op, tuple([memo[id(a)] for a in node.args]),
+                                            node.value)
+                elif node.op in codegen.SLOT_LEAVES:
+                    memo[id(node)] = E.Expr(node.op, (), payload[node.op][k][node.value])
+                else:
+                    memo[id(node)] = node
+            out.append(memo[id(self.template)])
+        return out
 
     def payload_rows(self, kind):
         """Per instance, the payloads of the slots of ``kind`` (a list per row)."""
