@@ -33,6 +33,12 @@ _SCALAR_FUNCS = {"sqrt": "_sqrt", "exp": "_exp", "log": "_log", "tanh": "_tanh",
                  "cos": "_cos", "atan": "_atan", "abs": "abs"}
 _ARRAY_FUNCS = {"sqrt": "_np.sqrt", "exp": "_np.exp", "log": "_np.log", "tanh": "_np.tanh",
                 "sin": "_np.sin", "cos": "_np.cos", "atan": "_np.arctan", "abs": "_np.abs"}
+# rows evaluated over arrays of instances: numpy arithmetic, square root and absolute value (exact
+# like Python's), and the transcendental functions of ``math`` element by element, so that every
+# instance gets the very numbers of the straight-line code (numpy's own exp, tanh, ... may differ
+# from ``math``'s in the last bit)
+_ROWS_FUNCS = {"sqrt": "_np.sqrt", "exp": "_mexp", "log": "_mlog", "tanh": "_mtanh",
+               "sin": "_msin", "cos": "_mcos", "atan": "_matan", "abs": "_np.abs"}
 _INFIX = {"add": "+", "sub": "-", "mul": "*", "div": "/", "pow": "**",
           "lt": "<", "le": "<=", "gt": ">", "ge": ">="}
 
@@ -41,10 +47,13 @@ def generate(name: str, roots: list[Expr], *, flavour: str = "scalar",
              extra_args: tuple[str, ...] = (), comments: list[str] | None = None):
     """Source text of ``def name(t, y, yp, d, *extra_args)`` returning the list of ``roots``.
 
+    ``flavour``: ``"scalar"`` (Python floats), ``"array"`` (numpy on arrays of time points) or
+    ``"rows"`` (arrays of instances, the numbers of the scalar flavour; no table look-ups).
+
     Returns ``(source, tables)``: the text and the :class:`~pvgraph.expr.Table` objects it
     references (to be bound as ``_tab0``, ``_tab1``, ... in its namespace).
     """
-    funcs = _SCALAR_FUNCS if flavour == "scalar" else _ARRAY_FUNCS
+    funcs = {"scalar": _SCALAR_FUNCS, "array": _ARRAY_FUNCS, "rows": _ROWS_FUNCS}[flavour]
     order = postorder(roots)
 
     # structural keys: equal subtrees share one key, so they are computed once
@@ -154,12 +163,32 @@ def _float(v: float) -> str:
     return repr(float(v))
 
 
+def _elementwise(fn):
+    """``fn`` of ``math`` applied to each element of an array; NaN where it raises."""
+    def safe(x):
+        try:
+            return fn(x)
+        except (ValueError, OverflowError):
+            return math.nan
+    ufunc = np.frompyfunc(safe, 1, 1)
+
+    def apply(x):
+        out = ufunc(x)
+        return out.astype(float) if isinstance(out, np.ndarray) else float(out)
+    apply.__name__ = fn.__name__
+    return apply
+
+
+_ROWS_NAMESPACE = {f"_m{fn.__name__}": _elementwise(fn)
+                   for fn in (math.exp, math.log, math.tanh, math.sin, math.cos, math.atan)}
+
+
 def compile_function(name: str, source: str, tables: list):
     """Execute generated ``source`` and return the function ``name`` defined in it."""
     namespace = {
         "_sqrt": math.sqrt, "_exp": math.exp, "_log": math.log, "_tanh": math.tanh,
         "_sin": math.sin, "_cos": math.cos, "_atan": math.atan, "_np": np,
-        "_nan": math.nan, "_inf": math.inf,
+        "_nan": math.nan, "_inf": math.inf, **_ROWS_NAMESPACE,
     }
     for i, tab in enumerate(tables):
         namespace[f"_tab{i}"] = tab

@@ -12,8 +12,8 @@ In big systems (``ARRAY_MIN_ROWS`` rows or more) residual rows and event functio
 repeated ``ARRAY_MIN_GROUP`` times or more are generated once, as a template over slots, and
 evaluated with numpy over arrays of their instances' unknowns and parameters; their Jacobian
 values are scattered into the same sparse pattern. The operations are those of the straight-line
-code, in the same order: the numbers agree bit for bit, except where numpy's transcendental
-functions (``exp``, ``tanh``, ...) round differently from ``math``'s, by an ulp.
+code, in the same order, with the transcendental functions of ``math`` (numpy's own may differ
+in the last bit): both give the same numbers, bit for bit.
 """
 
 from __future__ import annotations
@@ -1164,7 +1164,7 @@ class _ArrayRows:
         srcs = []
         for what, roots, extra in parts:
             fname = f"{what}_{k}"
-            src, tabs = codegen.generate(fname, roots, flavour="array", extra_args=extra)
+            src, tabs = codegen.generate(fname, roots, flavour="rows", extra_args=extra)
             setattr(self, f"{what[:3]}_fn", codegen.compile_function(fname, src, tabs))
             srcs.append(src)
         return head + "\n" + "\n\n".join(srcs)
