@@ -19,8 +19,10 @@ Pipeline
    move the parametric subexpressions into a ``derive`` function evaluated once per parameter
    set, and emit the residual, the Jacobian values on a fixed sparse pattern, all event
    functions as one function, and (when first needed) the derived outputs and dF/dp as
-   generated Python (:mod:`pvgraph.codegen`). Every stage costs time linear in the size of the
-   circuit, connection sets of any width included.
+   generated Python (:mod:`pvgraph.codegen`). In big systems, rows of one shape (the same
+   equation of many instances of a component class) are differentiated and generated once and
+   evaluated over arrays of their instances (``array_rows``). Every stage costs time linear in
+   the size of the circuit, connection sets of any width included.
 
 Parallel volumes on one node need no special treatment: the node's pressure is one unknown after
 alias elimination, each volume contributes its own flow unknown, and the DAE stays index one.
@@ -68,8 +70,14 @@ class _Equation:
     label: str       # human-readable description
 
 
-def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True):
+def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True,
+                    array_rows: bool | None = None):
     """Compile ``circuit`` to a :class:`~pvgraph.system.System`.
+
+    ``array_rows``: how rows of one shape (the same equation of many instances of a component
+    class) are evaluated: None (default) as arrays over their instances in big systems, True
+    as arrays whenever a shape repeats, False always as straight-line code (see
+    :func:`pvgraph.system.build_system`).
 
     Raises
     ------
@@ -85,13 +93,13 @@ def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True):
     enabled = gc.isenabled()
     gc.disable()
     try:
-        return _compile(circuit, eliminate_aliases)
+        return _compile(circuit, eliminate_aliases, array_rows)
     finally:
         if enabled:
             gc.enable()
 
 
-def _compile(circuit, eliminate_aliases):
+def _compile(circuit, eliminate_aliases, array_rows=None):
     leaves = _flatten(circuit)
     if not leaves:
         raise CircuitError(f"circuit {circuit.name!r} has no components")
@@ -121,7 +129,8 @@ def _compile(circuit, eliminate_aliases):
             mode_start.append(float(mstart))
 
     equations.extend(_connection_equations(circuit, leaves, infos))
-    _check_symbols(equations, infos, set(mode_names))
+    found = [E.leaves(eq.expr, ("sym", "der")) for eq in equations]
+    _check_symbols(equations, found, infos, set(mode_names))
 
     for name, info in registry.items():
         trace.values.setdefault(name, info.value)
@@ -129,14 +138,16 @@ def _compile(circuit, eliminate_aliases):
 
     subs: dict[str, tuple] = {}
     if eliminate_aliases:
-        equations = _eliminate_aliases(equations, infos, subs, trace.values)
+        equations = _eliminate_aliases(equations, infos, subs, trace.values, found)
+    del found
 
     from .index_reduction import given_starts, reduce_index
     equations, events, observed, reduction = reduce_index(equations, infos, subs, events,
                                                           observed, given_starts(leaves))
     from .system import build_system
     system = build_system(circuit.name, equations, infos, subs, observed, events, mode_names,
-                          mode_start, parameters=registry, tables=trace.tables)
+                          mode_start, parameters=registry, tables=trace.tables,
+                          array_rows=array_rows)
     system._circuit = circuit
     system._components = dict(leaves)
     system._models = {path: comp.params for path, comp in leaves}
@@ -251,7 +262,7 @@ def _connection_equations(root, leaves, infos) -> list[_Equation]:
                 f"port {labels[0]!r} ({domain.name}) is not connected{via}. Connect it to "
                 f"another port, or close it explicitly (a Plug for a hydraulic port, a Fixed "
                 f"for a mechanical one).")
-        node_label = "node{" + ", ".join(labels) + "}"
+        node_label = _node_label(labels)
         across = [E.Expr("sym", (), f"{lab}.{domain.across}") for lab in labels]
         through = [E.Expr("sym", (), f"{lab}.{domain.through}") for lab in labels]
         for lab, a in zip(labels[1:], across[1:]):
@@ -263,6 +274,15 @@ def _connection_equations(root, leaves, infos) -> list[_Equation]:
         equations.append(_Equation(total, node_label,
                                    f"{node_label}: sum of {domain.through} is zero"))
     return equations
+
+
+def _node_label(labels):
+    """``node{a.p, b.p, ...}`` naming a connection set; a wide one by a few ports and a count
+    (every equation of the set carries the label)."""
+    if len(labels) <= NAMES_IN_MESSAGES:
+        return "node{" + ", ".join(labels) + "}"
+    return ("node{" + ", ".join(labels[:NAMES_IN_MESSAGES - 2]) +
+            f", ... ({len(labels) - NAMES_IN_MESSAGES + 1} more), {labels[-1]}}}")
 
 
 class _PortKey:
@@ -287,9 +307,10 @@ def _signal_set(labels, specs, exposed):
                       f"signal {outputs[0]} drives {lab}") for lab in inputs]
 
 
-def _check_symbols(equations, infos, modes):
-    for eq in equations:
-        for op, name in E.leaves(eq.expr, ("sym", "der")):
+def _check_symbols(equations, found, infos, modes):
+    """Every symbol an equation reads is a variable or a mode (``found``: their leaves)."""
+    for eq, leaves in zip(equations, found):
+        for op, name in leaves:
             if name not in infos and name not in modes:
                 raise CircuitError(f"{eq.label} uses the unknown variable {name!r}")
             if op == "der" and name in modes:
@@ -304,6 +325,11 @@ def _affine(e: E.Expr):
     Coefficients and the constant are floats, or parametric expressions (constants and runtime
     parameters) where they depend on parameters.
     """
+    if e.op in ("add", "sub"):   # the common case: a connection equality or flow balance
+        a, b = e.args
+        if a.op == "sym" and b.op == "sym" and a.value != b.value and "#" not in a.value \
+                and "#" not in b.value:
+            return {a.value: 1.0, b.value: 1.0 if e.op == "add" else -1.0}, 0.0
     nodes = E.postorder([e], MAX_AFFINE_NODES)
     if nodes is None:
         return None
@@ -410,19 +436,21 @@ def _kexpr(x):
     return x if isinstance(x, E.Expr) else E.const(x)
 
 
-def _eliminate_aliases(equations, infos, subs, values):
+def _eliminate_aliases(equations, infos, subs, values, found=None):
     """Remove unknowns defined by affine one- and two-variable equations (in place on subs).
 
     The unknown removed must have a constant coefficient, so that no parameter value can make
     the elimination divide by zero; the other coefficient and the offset may be parametric.
-    ``values`` holds the parameters' compile-time values (for carrying start values).
+    ``values`` holds the parameters' compile-time values (for carrying start values);
+    ``found`` the ``(op, name)`` leaves of each equation, if known.
     """
+    if found is None:
+        found = [E.leaves(eq.expr, ("sym", "der")) for eq in equations]
     used_der: set[str] = set()
     names_of = []   # the variables (values or derivatives) each equation reads
-    for eq in equations:
-        found = E.leaves(eq.expr, ("sym", "der"))
-        used_der.update(name for op, name in found if op == "der")
-        names_of.append({name for _, name in found})
+    for leaves in found:
+        used_der.update(name for op, name in leaves if op == "der")
+        names_of.append({name for _, name in leaves})
 
     def num(x):
         return x if isinstance(x, float) else E.evaluate(x, values)
@@ -454,7 +482,9 @@ def _eliminate_aliases(equations, infos, subs, values):
             eq, expr, names, fresh = item
             if any(nm in subs for nm in names):
                 expr = _apply(expr, subs, resolve)
-                names = {name for _, name in E.leaves(expr, ("sym", "der"))}
+                # the names it may read now (a superset where the substitution cancelled one)
+                names = {resolve(nm)[1] if nm in subs else nm for nm in names}
+                names.discard(None)
                 item[1], item[2], fresh = expr, names, True
             if not fresh:
                 keep.append(item)

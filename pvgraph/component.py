@@ -346,13 +346,26 @@ class ParameterInfo:
 
 
 _UNIT = re.compile(r"\[([^\]]*)\]")
+_META: dict = {}     # (model class, field) -> (unit, description)
+_FIELDS: dict = {}   # model class -> its fields
+_STATIC: dict = {}   # (model class, attribute) -> the class attribute, for views
 
 
 def _field_meta(model: BaseModel, name: str) -> tuple[str, str]:
-    info = type(model).model_fields[name]
-    desc = info.description or ""
-    m = _UNIT.search(desc)
-    return (m.group(1) if m else ""), desc
+    key = (type(model), name)
+    meta = _META.get(key)
+    if meta is None:
+        desc = type(model).model_fields[name].description or ""
+        m = _UNIT.search(desc)
+        meta = _META[key] = (m.group(1) if m else ""), desc
+    return meta
+
+
+def _fields(cls) -> dict:
+    fields = _FIELDS.get(cls)
+    if fields is None:
+        fields = _FIELDS[cls] = dict(cls.model_fields)
+    return fields
 
 
 class _ModelView:
@@ -375,7 +388,7 @@ class _ModelView:
     def __getattr__(self, name):
         model = self._model
         cls = type(model)
-        if name in cls.model_fields:
+        if name in _fields(cls):
             value = getattr(model, name)
             if isinstance(value, float):
                 full = f"{self._owner}.{self._prefix}{name}"
@@ -394,7 +407,11 @@ class _ModelView:
                                                          self._prefix + name)
                 return self._array(full, value)
             return value
-        attr = inspect.getattr_static(cls, name, None)
+        key = (cls, name)
+        if key in _STATIC:
+            attr = _STATIC[key]
+        else:
+            attr = _STATIC[key] = inspect.getattr_static(cls, name, None)
         if isinstance(attr, property):
             return attr.fget(self)
         if isinstance(attr, functools.cached_property):

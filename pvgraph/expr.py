@@ -505,11 +505,12 @@ def is_const(e: Expr, value: float | None = None) -> bool:
 
 
 def _add(a, b):
-    if is_const(a) and is_const(b):
-        return const(a.value + b.value)
-    if is_const(a, 0.0):
-        return b
-    if is_const(b, 0.0):
+    if a.op == "const":
+        if b.op == "const":
+            return const(a.value + b.value)
+        if a.value == 0.0:
+            return b
+    elif b.op == "const" and b.value == 0.0:
         return a
     if b.op == "neg":
         return _sub(a, b.args[0])
@@ -517,11 +518,12 @@ def _add(a, b):
 
 
 def _sub(a, b):
-    if is_const(a) and is_const(b):
-        return const(a.value - b.value)
-    if is_const(b, 0.0):
-        return a
-    if is_const(a, 0.0):
+    if b.op == "const":
+        if a.op == "const":
+            return const(a.value - b.value)
+        if b.value == 0.0:
+            return a
+    elif a.op == "const" and a.value == 0.0:
         return _neg(b)
     if b.op == "neg":
         return _add(a, b.args[0])
@@ -531,20 +533,26 @@ def _sub(a, b):
 
 
 def _mul(a, b):
-    if is_const(a) and is_const(b):
-        return const(a.value * b.value)
-    if is_const(a, 0.0) or is_const(b, 0.0):
-        return ZERO
-    if is_const(a, 1.0):
-        return b
-    if is_const(b, 1.0):
-        return a
-    if is_const(a, -1.0):
-        return _neg(b)
-    if is_const(b, -1.0):
-        return _neg(a)
-    if is_const(b):
-        a, b = b, a  # constants first: reads like physics, k * x
+    if a.op == "const":
+        if b.op == "const":
+            return const(a.value * b.value)
+        v = a.value
+        if v == 0.0:
+            return ZERO
+        if v == 1.0:
+            return b
+        if v == -1.0:
+            return _neg(b)
+        return Expr("mul", (a, b))
+    if b.op == "const":
+        v = b.value
+        if v == 0.0:
+            return ZERO
+        if v == 1.0:
+            return a
+        if v == -1.0:
+            return _neg(a)
+        return Expr("mul", (b, a))  # constants first: reads like physics, k * x
     if a.op == "neg" and b.op == "neg":
         return _mul(a.args[0], b.args[0])
     return Expr("mul", (a, b))
@@ -665,26 +673,40 @@ def interp(table: Table, x) -> Expr:
 def postorder(roots: Iterable[Expr], limit: int | None = None):
     """Every node reachable from ``roots``, children before parents, each once.
 
-    With ``limit``, ``None`` as soon as there are more than ``limit`` nodes.
+    Depth first, children left to right. With ``limit``, ``None`` as soon as there are more
+    than ``limit`` nodes.
     """
     seen: set[int] = set()
     order: list[Expr] = []
+    add = seen.add
+    emit = order.append
     for root in roots:
-        stack = [(root, False)]
+        if id(root) in seen:
+            continue
+        add(id(root))
+        if not root.args:
+            emit(root)
+            continue
+        # each frame holds a node and the iterator over its children; a leaf child is emitted
+        # at once, an inner one gets a frame (the loop resumes the parent's iterator after it)
+        stack = [(root, iter(root.args))]
+        push = stack.append
         while stack:
-            node, expanded = stack.pop()
-            if expanded:
-                order.append(node)
-                continue
-            if id(node) in seen:
-                continue
-            seen.add(id(node))
-            if limit is not None and len(seen) > limit:
-                return None
-            stack.append((node, True))
-            for arg in reversed(node.args):
-                if id(arg) not in seen:
-                    stack.append((arg, False))
+            node, children = stack[-1]
+            for a in children:
+                if id(a) not in seen:
+                    add(id(a))
+                    if limit is not None and len(seen) > limit:
+                        return None
+                    if a.args:
+                        push((a, iter(a.args)))
+                        break
+                    emit(a)
+            else:
+                stack.pop()
+                emit(node)
+        if limit is not None and len(seen) > limit:
+            return None
     return order
 
 

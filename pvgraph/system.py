@@ -7,6 +7,13 @@ differential and algebraic variables, and the aliases removed by the compiler. P
 runtime values (the vector ``P`` every generated function takes): one compiled system runs with
 other parameter values (:meth:`System.with_params`), and gives the parameter derivative dF/dp
 (:meth:`System.parameter_jacobian`) for sensitivities.
+
+In big systems (``ARRAY_MIN_ROWS`` rows or more) residual rows and event functions of one shape
+repeated ``ARRAY_MIN_GROUP`` times or more are generated once, as a template over slots, and
+evaluated with numpy over arrays of their instances' unknowns and parameters; their Jacobian
+values are scattered into the same sparse pattern. The operations are those of the straight-line
+code, in the same order, with the transcendental functions of ``math`` (numpy's own may differ
+in the last bit): both give the same numbers, bit for bit.
 """
 
 from __future__ import annotations
@@ -88,6 +95,10 @@ class System:
 
     DENSE_MAX = 120  # above this many unknowns the Jacobian is handed to the solver sparse
     index_reduction = None  # the compiler's IndexReduction (pvgraph.index_reduction)
+    _vector = None          # rows evaluated as arrays (_ArrayPart), if any
+    _vecP: list = []        # per row group: its parameter slot arrays and derived arrays
+    _ev_vector = None       # events evaluated as arrays (_ArrayPart), if any
+    _ev_vecP: list = []
 
     def __init__(self, name, names, differential, y0, nominal, units, descriptions, equations,
                  rows, cols, residual_fn, jac_fn, observed_fn, observed, event_fn, event_specs,
@@ -126,7 +137,6 @@ class System:
         self._models: dict = {}
         self._pindex: dict = {}
         self._tables: list = []
-        self._obs_exprs: dict = {}
         self._derive = None
         self._nbase = 0
         self._sources = sources
@@ -141,6 +151,8 @@ class System:
     def residual(self, t, y, yp):
         """F(t, y, y') as an array; NaN where an equation cannot be evaluated."""
         try:
+            if self._vector is not None:
+                return self._array_residual(t, y, yp)
             return np.array(self._res(t, y.tolist(), yp.tolist(), self.modes, self._P))
         except (ValueError, ZeroDivisionError, OverflowError):
             return np.full(self.n, np.nan)
@@ -148,9 +160,44 @@ class System:
     def jacobian_values(self, t, y, yp, c):
         """Values of dF/dy + c dF/dy' on the fixed pattern (CSC order)."""
         try:
+            if self._vector is not None:
+                return self._array_jacobian(t, y, yp, c)
             return np.array(self._jac(t, y.tolist(), yp.tolist(), self.modes, self._P, c))
         except (ValueError, ZeroDivisionError, OverflowError):
             return np.full(len(self._rows), np.nan)
+
+    def _array_residual(self, t, y, yp):
+        # Rows of repeated shapes are computed over arrays of their instances. numpy returns
+        # NaN or inf where the straight-line code raises (a square root of a negative number,
+        # a division by zero): such an entry becomes NaN, "cannot be evaluated", in its own row
+        # (the straight-line code, stopped by the exception, makes every row NaN).
+        part = self._vector
+        y = np.asarray(y, dtype=float)
+        yp = np.asarray(yp, dtype=float)
+        out = np.empty(self.n)
+        if len(part.scalar_rows):
+            out[part.scalar_rows] = self._res(t, y.tolist(), yp.tolist(), self.modes, self._P)
+        modes = np.asarray(self.modes, dtype=float) if part.uses_modes else None
+        with np.errstate(all="ignore"):
+            for g, P in zip(part.groups, self._vecP):
+                Y, YP, D = g.gather(y, yp, modes)
+                out[g.rows] = g.res_fn(t, Y, YP, D, P)[0]
+        return _nan_where_not_finite(out)
+
+    def _array_jacobian(self, t, y, yp, c):
+        part = self._vector
+        y = np.asarray(y, dtype=float)
+        yp = np.asarray(yp, dtype=float)
+        out = np.empty(len(self._rows))
+        if len(part.scalar_pos):
+            out[part.scalar_pos] = self._jac(t, y.tolist(), yp.tolist(), self.modes, self._P, c)
+        modes = np.asarray(self.modes, dtype=float) if part.uses_modes else None
+        with np.errstate(all="ignore"):
+            for g, P in zip(part.groups, self._vecP):
+                Y, YP, D = g.gather(y, yp, modes)
+                for pos, vals in zip(g.jac_pos, g.jac_fn(t, Y, YP, D, P, c)):
+                    out[pos] = vals
+        return _nan_where_not_finite(out)
 
     def jacobian(self, t, y, yp, c):
         """dF/dy + c dF/dy' as a sparse CSC matrix."""
@@ -210,15 +257,34 @@ class System:
 
     def event_values(self, t, y, yp):
         """Every event function at one point."""
+        if self._ev_vector is not None:
+            return self._array_events(t, y, yp)
         return self._event_fn(t, y.tolist(), yp.tolist(), self.modes, self._P)
+
+    def _array_events(self, t, y, yp):
+        part = self._ev_vector
+        y = np.asarray(y, dtype=float)
+        yp = np.asarray(yp, dtype=float)
+        out = np.empty(len(self.event_specs))
+        if len(part.scalar_rows):
+            out[part.scalar_rows] = self._event_fn(t, y.tolist(), yp.tolist(), self.modes,
+                                                   self._P)
+        modes = np.asarray(self.modes, dtype=float) if part.uses_modes else None
+        with np.errstate(all="ignore"):
+            for g, P in zip(part.groups, self._ev_vecP):
+                Y, YP, D = g.gather(y, yp, modes)
+                out[g.rows] = g.res_fn(t, Y, YP, D, P)[0]
+        return out
 
     def solver_events(self):
         """The declared events as :class:`pvgraph.solver.Event` objects bound to this system."""
         from .solver import Event
         fn, modes, P = self._event_fn, self.modes, self._P
-
-        def g_all(t, y, yp):
-            return fn(t, y.tolist(), yp.tolist(), modes, P)
+        if self._ev_vector is not None:
+            g_all = self._array_events
+        else:
+            def g_all(t, y, yp):
+                return fn(t, y.tolist(), yp.tolist(), modes, P)
 
         out = []
         for k, (path, spec) in enumerate(self.event_specs):
@@ -241,6 +307,8 @@ class System:
         P = self._P
 
         def g(t, y, yp):
+            if self._ev_vector is not None:
+                return g_all(t, y, yp)[k]
             return fn(t, y.tolist(), yp.tolist(), modes, P)[k]
 
         g.vector = (g_all, k)   # the solver evaluates every event in one call of g_all
@@ -467,10 +535,28 @@ class System:
             return
         try:
             values = self._derive(0.0, None, None, None, self._P)
+            if self._vector is not None or self._ev_vector is not None:
+                self._vecP, self._ev_vecP = self._array_params()
         except (ValueError, ZeroDivisionError, OverflowError) as exc:
             raise ParameterError(f"{self.name}: the parameter values give an invalid derived "
                                  f"quantity ({exc}); check the values just set") from None
         self._P[self._nbase:] = values
+
+    def _array_params(self):
+        """Parameter and derived arrays of the row groups of the residual and the events."""
+        P = np.array([v if isinstance(v, (int, float)) else np.nan
+                      for v in self._P[:len(self.parameters)]], dtype=float)
+        out = []
+        for part in (self._vector, self._ev_vector):
+            per_group = []
+            for g in part.groups if part is not None else ():
+                with np.errstate(all="ignore"):
+                    Pg = g.params(P)
+                if not all(np.all(np.isfinite(a)) for a in Pg[len(g.index["param"]):]):
+                    raise ValueError(f"a non-finite value in {g.label}")
+                per_group.append(Pg)
+            out.append(per_group)
+        return out
 
     def params_from(self, circuit) -> dict[str, float]:
         """The runtime parameter values of ``circuit``, built like the one compiled.
@@ -581,7 +667,16 @@ class System:
 
     def _generate_dfdp(self):
         entries = []
-        for i, r in enumerate(self._lazy.pop("residual_exprs")):
+        exprs = self._lazy.pop("residual_exprs", None)
+        if exprs is None:   # rows of array groups are rebuilt from their templates
+            scalar_rows, scalar_res = self._lazy.pop("residual_scalar")
+            exprs = [None] * self.n
+            for i, r in zip(scalar_rows, scalar_res):
+                exprs[i] = r
+            for g in self._vector.groups:
+                for i, r in zip(g.rows.tolist(), g.instances()):
+                    exprs[i] = r
+        for i, r in enumerate(exprs):
             for (op, k), d in E.gradient(r, ("param",)).items():
                 if not E.is_const(d, 0.0):
                     entries.append((i, k, d))
@@ -665,10 +760,21 @@ class System:
             for path, model in saved.items():
                 comps[path].params = model
 
+    @property
+    def _obs_exprs(self) -> dict:
+        """Derived outputs by name, as expressions of the unknowns and parameters."""
+        exprs = self._lazy.get("observed_exprs")
+        if exprs is None:
+            names, raw, leaf = self._lazy.pop("observed_raw", ((), (), None))
+            exprs = self._lazy["observed_exprs"] = dict(zip(names, E.substitute(list(raw), leaf)))
+        return exprs
+
     def _observed_fn(self):
         fn = self._lazy.get("observed_fn")
         if fn is None:
-            exprs, names = self._lazy["observed_exprs"]
+            exprs = self._obs_exprs
+            names = list(exprs)
+            exprs = list(exprs.values())
             src, tabs = codegen.generate("observed", exprs, flavour="array", extra_args=("P",),
                                          comments=names)
             self._lazy["observed_src"] = src
@@ -688,6 +794,13 @@ class System:
         return (f"<System {self.name}: {self.n} unknowns ({int(self.differential.sum())} "
                 f"differential), {len(self._rows)} Jacobian non-zeros, {len(self.event_specs)} "
                 f"events>")
+
+
+def _nan_where_not_finite(values):
+    bad = ~np.isfinite(values)
+    if bad.any():
+        values[bad] = np.nan
+    return values
 
 
 # helpers for parameters ----------------------------------------------------------------------
@@ -835,11 +948,14 @@ def _starts_of(comp, model) -> dict:
 
 
 def build_system(name, equations, infos, subs, observed, events, mode_names, mode_start,
-                 parameters=None, tables=()):
+                 parameters=None, tables=(), array_rows=None):
     """Number the unknowns and parameters, differentiate, generate code, run the checks.
 
     ``parameters`` maps the names of the runtime parameters to their
     :class:`~pvgraph.component.ParameterInfo`, in the order of the parameter vector.
+    ``array_rows``: None evaluates row shapes repeated at least ``ARRAY_MIN_GROUP`` times as
+    arrays in systems of at least ``ARRAY_MIN_ROWS`` rows; True does so for every shape shared
+    by two rows or more; False never (straight-line code only).
     """
     from .compiler import check_structure
 
@@ -885,14 +1001,38 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
                                                                           index[target])
         return param_leaf(node)
 
-    res_exprs = E.substitute([eq.expr for eq in equations], leaf)
+    def compiled_leaf(node):
+        # the (kind, payload) of the single compiled leaf a traced leaf becomes, if it is one
+        op = node.op
+        if op == "sym":
+            if node.value in index:
+                return "y", index[node.value]
+            if node.value in mode_index:
+                return "mode", mode_index[node.value]
+        elif op == "der":
+            if node.value in index:
+                return "yp", index[node.value]
+        elif op == "param" and isinstance(node.value, str):
+            return "param", pindex[node.value]
+        return None
+
+    raw = [eq.expr for eq in equations]
     labels = [eq.label for eq in equations]
     del equations
 
+    # rows of one shape repeated often enough are evaluated as arrays over their instances
+    # (templated from the traced rows directly); the others get straight-line code
+    groups, scalar_rows = _array_groups(raw, array_rows, compiled_leaf)
+    if groups:
+        scalar_res = E.substitute([raw[i] for i in scalar_rows], leaf)
+    else:
+        scalar_res = E.substitute(raw, leaf)
+
     # every partial derivative of a row in one reverse pass over it
-    inc_y, inc_yp = [], []
+    inc_y: list = [None] * len(raw)
+    inc_yp: list = [None] * len(raw)
     entries = []
-    for i, r in enumerate(res_exprs):
+    for i, r in zip(scalar_rows, scalar_res):
         grads = E.gradient(r, ("y", "yp"))
         dy, dyp = {}, {}
         for (op, k), d in grads.items():
@@ -900,31 +1040,42 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
                 dy[k] = d
             else:
                 dyp[k] = d
-        inc_y.append(sorted(dy))
-        inc_yp.append(sorted(dyp))
+        inc_y[i] = sorted(dy)
+        inc_yp[i] = sorted(dyp)
         for j in sorted(dy.keys() | dyp.keys()):
             d = dy.get(j, E.ZERO)
             if j in dyp:
                 d = d + E.CJ * dyp[j]
             entries.append(_Entry(i, j, d))
+    for g in groups:
+        g.differentiate()
+        for row, ys, yps in zip(g.rows.tolist(), g.payload_rows("y"), g.payload_rows("yp")):
+            inc_y[row] = sorted(ys)
+            inc_yp[row] = sorted(yps)
     differential = np.zeros(len(names), dtype=bool)
     for cols in inc_yp:
         differential[cols] = True
     check_structure(names, labels, inc_y, inc_yp, differential)
-    entries.sort(key=lambda en: (en.col, en.row))
+    del inc_y, inc_yp
+    if not groups:
+        entries.sort(key=lambda en: (en.col, en.row))
+
+    # events: repeated shapes as arrays too
+    ev_raw = [ev.condition for _, ev in events]
+    ev_groups, ev_scalar = _array_groups(ev_raw, array_rows, compiled_leaf, len(raw))
+    ev_exprs = E.substitute([ev_raw[i] for i in ev_scalar], leaf) if ev_scalar else []
 
     # parametric subexpressions (constants and parameters only) are computed once per parameter
     # set, into P after the parameters and runtime tables, not at every call
-    ev_exprs = E.substitute([ev.condition for _, ev in events], leaf) if events else []
     obs_names = list(observed)
-    obs_exprs = E.substitute([observed[nm][0] for nm in obs_names], leaf) if obs_names else []
     base = len(parameters) + len(tables)
-    groups = [res_exprs, [en.expr for en in entries], ev_exprs, obs_exprs]
-    (res_h, jac_h, ev_h, obs_h), derived = _hoist(groups, base)
+    groups_h = [scalar_res, [en.expr for en in entries], ev_exprs]
+    (res_h, jac_h, ev_h), derived = _hoist(groups_h, base)
     der_src, der_tabs = codegen.generate("derive", derived, extra_args=("P",))
     derive_fn = codegen.compile_function("derive", der_src, der_tabs)
 
-    res_src, res_tabs = codegen.generate("residual", res_h, comments=labels,
+    res_src, res_tabs = codegen.generate("residual", res_h,
+                                         comments=[labels[i] for i in scalar_rows],
                                          extra_args=("P",))
     jac_src, jac_tabs = codegen.generate(
         "jacobian", jac_h, extra_args=("P", "c"),
@@ -932,21 +1083,36 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     residual_fn = codegen.compile_function("residual", res_src, res_tabs)
     jac_fn = codegen.compile_function("jacobian", jac_src, jac_tabs)
 
+    ev_labels = [f"{p}.{ev.name}" for p, ev in events]
     ev_src, ev_tabs = codegen.generate("events", ev_h, extra_args=("P",),
-                                       comments=[f"{p}.{ev.name}" for p, ev in events])
+                                       comments=[ev_labels[i] for i in ev_scalar])
     event_fn = codegen.compile_function("events", ev_src, ev_tabs)
 
     observed_fn = None   # generated when first needed (results are often read by name only)
+    sources = [der_src, res_src, jac_src, ev_src]
+
+    if groups:
+        rows, cols, vector = _array_layout(entries, groups, scalar_rows)
+        for k, g in enumerate(groups):
+            sources.append(g.generate(f"{k}", labels))
+    else:
+        rows, cols, vector = [en.row for en in entries], [en.col for en in entries], None
+    ev_vector = None
+    if ev_groups:
+        ev_vector = _ArrayPart(ev_groups, np.asarray(ev_scalar, dtype=np.int64), None)
+        for k, g in enumerate(ev_groups):
+            sources.append(g.generate(f"events_{k}", ev_labels, jacobian=False))
 
     system = System(
         name, names, differential,
         [infos[nm].start for nm in names], [infos[nm].nominal for nm in names],
         [infos[nm].unit for nm in names], [infos[nm].description for nm in names], labels,
-        [en.row for en in entries], [en.col for en in entries], residual_fn, jac_fn,
+        rows, cols, residual_fn, jac_fn,
         observed_fn, {nm: (observed[nm][1], observed[nm][2]) for nm in obs_names}, event_fn,
-        events, mode_names, mode_start, subs, [der_src, res_src, jac_src, ev_src])
+        events, mode_names, mode_start, subs, sources)
     system._alias_units = {nm: infos[nm].unit for nm in subs}
-    system._obs_exprs = dict(zip(obs_names, obs_exprs))
+    system._vector = vector
+    system._ev_vector = ev_vector
     system.parameters = parameters
     system._pindex = pindex
     system._P = [info.value if isinstance(info.value, tuple) else float(info.value)
@@ -955,8 +1121,192 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     system._derive = derive_fn
     system._nbase = base
     system._update_derived()
-    system._lazy["residual_exprs"] = res_exprs   # for dF/dp, differentiated when first asked
-    system._lazy["observed_exprs"] = (obs_h, obs_names)
+    # for dF/dp, numbered and differentiated when first asked
+    if groups:
+        system._lazy["residual_scalar"] = (scalar_rows, scalar_res)
+    else:
+        system._lazy["residual_exprs"] = scalar_res
+    # derived outputs are numbered and generated when first read
+    system._lazy["observed_raw"] = (obs_names, [observed[nm][0] for nm in obs_names], leaf)
     system._models = {}
     system.reset_modes()
     return system
+
+
+# rows evaluated as arrays ----------------------------------------------------------------------
+
+#: a circuit with at least this many residual rows evaluates repeated row shapes as arrays
+ARRAY_MIN_ROWS = 1000
+#: ... a shape shared by at least this many rows
+ARRAY_MIN_GROUP = 32
+
+
+class _ArrayRows:
+    """Residual rows of one shape: one template, evaluated over arrays of their instances.
+
+    ``rows`` are the row numbers; ``index[kind][s]`` is the array of payloads (unknown,
+    parameter or mode numbers) slot ``s`` of that kind takes in each instance.
+    """
+
+    def __init__(self, rows, leaves_per_row, expr, leaf_of=None):
+        self.rows = np.asarray(rows, dtype=np.int64)
+        self.index = {kind: [np.fromiter((lv[kind][s] for lv in leaves_per_row), dtype=np.int64,
+                                         count=len(rows))
+                             for s in range(len(leaves_per_row[0][kind]))]
+                      for kind in codegen.SLOT_LEAVES}
+        self.template = codegen.template(expr, leaves_per_row[0], leaf_of)
+        self.label = ""     # a row of the group, for messages
+        self.nderived = 0
+        self.columns = []   # (kind, slot) of each Jacobian column of the template
+        self.jac = []       # d row / d column (+ c d row / d column') per column
+        self.res_fn = self.jac_fn = self.der_fn = None
+        self.jac_pos: list = []
+
+    def instances(self):
+        """The rows as expressions of the unknowns and parameters, rebuilt from the template."""
+        order = E.postorder([self.template])
+        payload = {kind: np.stack(idx, axis=1).tolist() if idx else None
+                   for kind, idx in self.index.items()}
+        out = []
+        for k in range(len(self.rows)):
+            memo: dict[int, E.Expr] = {}
+            for node in order:
+                if node.args:
+                    memo[id(node)] = E.Expr(node.op, tuple([memo[id(a)] for a in node.args]),
+                                            node.value)
+                elif node.op in codegen.SLOT_LEAVES:
+                    memo[id(node)] = E.Expr(node.op, (), payload[node.op][k][node.value])
+                else:
+                    memo[id(node)] = node
+            out.append(memo[id(self.template)])
+        return out
+
+    def payload_rows(self, kind):
+        """Per instance, the payloads of the slots of ``kind`` (a list per row)."""
+        idx = self.index[kind]
+        if not idx:
+            return [()] * len(self.rows)
+        return np.stack(idx, axis=1).tolist()
+
+    def differentiate(self):
+        """The template's partial derivatives, merged per unknown as in scalar rows."""
+        grads = E.gradient(self.template, ("y", "yp"))
+        dy = {k: d for (op, k), d in grads.items() if op == "y"}
+        dyp = {k: d for (op, k), d in grads.items() if op == "yp"}
+        pairs = self._pairs()
+        merged = {s: y for s, y in pairs.items() if y >= 0}
+        for s in sorted(dy):
+            d = dy[s]
+            for sp, sy in merged.items():
+                if sy == s and sp in dyp:
+                    d = d + E.CJ * dyp[sp]
+            self.columns.append(("y", s))
+            self.jac.append(d)
+        for sp in sorted(dyp):
+            if sp in merged:
+                continue
+            self.columns.append(("yp", sp))
+            self.jac.append(E.ZERO + E.CJ * dyp[sp])
+
+    def _pairs(self):
+        """Derivative slot -> value slot reading the same unknown (-1: none), from instance 0."""
+        ys = {int(a[0]): s for s, a in enumerate(self.index["y"])}
+        return {s: ys.get(int(a[0]), -1) for s, a in enumerate(self.index["yp"])}
+
+    def generate(self, k, labels, jacobian=True):
+        """Compile the template's residual, Jacobian and derived parameters; return the source.
+
+        ``k`` names the functions (``residual_k``...); ``labels`` are the rows' labels.
+        """
+        nparam = len(self.index["param"])
+        self.label = labels[self.rows[0]]
+        (res_h, jac_h), derived = _hoist([[self.template], self.jac], nparam)
+        self.nderived = len(derived)
+        head = (f"# rows of shape {k}: {len(self.rows)} instances, e.g. {self.label}; "
+                f"y[s] is the array of slot s over the instances")
+        parts = [("derive", derived, ("P",)), ("residual", res_h, ("P",))]
+        if jacobian:
+            parts.append(("jacobian", jac_h, ("P", "c")))
+        srcs = []
+        for what, roots, extra in parts:
+            fname = f"{what}_{k}"
+            src, tabs = codegen.generate(fname, roots, flavour="rows", extra_args=extra)
+            setattr(self, f"{what[:3]}_fn", codegen.compile_function(fname, src, tabs))
+            srcs.append(src)
+        return head + "\n" + "\n\n".join(srcs)
+
+    def gather(self, y, yp, modes):
+        """The slot arrays of one call: ``(y, yp, modes)`` lists."""
+        return ([y[i] for i in self.index["y"]], [yp[i] for i in self.index["yp"]],
+                [modes[i] for i in self.index["mode"]] if self.index["mode"] else ())
+
+    def params(self, P):
+        """Parameter slot arrays followed by the derived parametric arrays (``P`` numeric)."""
+        base = [P[i] for i in self.index["param"]]
+        if not self.nderived:
+            return base
+        return base + [np.broadcast_to(np.asarray(v, dtype=float), self.rows.shape)
+                       for v in self.der_fn(0.0, None, None, None, base)]
+
+
+class _ArrayPart:
+    """How a system's residual (or events) and Jacobian values are assembled from row groups.
+
+    ``scalar_rows`` are the rows of the straight-line code, ``scalar_pos`` the places of its
+    Jacobian values in the pattern.
+    """
+
+    def __init__(self, groups, scalar_rows, scalar_pos=None):
+        self.groups = groups
+        self.scalar_rows = scalar_rows
+        self.scalar_pos = scalar_pos
+        self.uses_modes = any(g.index["mode"] for g in groups)
+
+
+def _array_groups(exprs, array_rows, leaf_of=None, n_rows=None):
+    """Split rows into groups of one shape (evaluated as arrays) and the rest.
+
+    ``n_rows`` (default ``len(exprs)``) is the size of the system, for the automatic choice.
+    """
+    size = len(exprs) if n_rows is None else n_rows
+    if not exprs or array_rows is False or (array_rows is None and size < ARRAY_MIN_ROWS):
+        return [], list(range(len(exprs)))
+    min_group = 2 if array_rows is True else ARRAY_MIN_GROUP
+    by_shape: dict = {}
+    scalar = []
+    for i, r in enumerate(exprs):
+        shape = codegen.row_shape(r, leaf_of)
+        if shape is None:
+            scalar.append(i)
+            continue
+        by_shape.setdefault(shape[0], []).append((i, shape[1]))
+    groups = []
+    for members in by_shape.values():
+        if len(members) < min_group:
+            scalar.extend(i for i, _ in members)
+            continue
+        rows = [i for i, _ in members]
+        groups.append(_ArrayRows(rows, [lv for _, lv in members], exprs[rows[0]], leaf_of))
+    scalar.sort()
+    return groups, scalar
+
+
+def _array_layout(entries, groups, scalar_rows):
+    """The Jacobian pattern (CSC order) of scalar entries and groups, and where each goes."""
+    rows = [np.array([en.row for en in entries], dtype=np.int64)]
+    cols = [np.array([en.col for en in entries], dtype=np.int64)]
+    for g in groups:
+        for kind, s in g.columns:
+            rows.append(g.rows)
+            cols.append(g.index[kind][s])
+    all_rows, all_cols = np.concatenate(rows), np.concatenate(cols)
+    order = np.lexsort((all_rows, all_cols))
+    pos = np.empty(len(order), dtype=np.int64)
+    pos[order] = np.arange(len(order))
+    start = len(entries)
+    for g in groups:
+        for _ in g.columns:
+            g.jac_pos.append(pos[start:start + len(g.rows)])
+            start += len(g.rows)
+    part = _ArrayPart(groups, np.asarray(scalar_rows, dtype=np.int64), pos[:len(entries)])
+    return all_rows[order], all_cols[order], part
