@@ -21,7 +21,8 @@ Identification (:func:`identify`)
        junction, so Pm - Pb = offset' + Q_total / K_hose over the closed-L2 points (B.7);
     1. load laws, per orifice setting, from the training tests' measured Q and dp (report
        4.7.2, eq. 4.132): Q = K dp + b dp |dp| with b >= 0 (non-negative least squares) where
-       the training data span two pressure levels, else the laminar Q = K dp;
+       the training data span two pressure levels, else Q = K dp (1 + beta dp) with beta the
+       mean b/K of the L1/L3 settings fitted at two levels (the laminar Q = K dp where none);
     2. supply voltage U_s and the shape of the main-spool opening A_H (the cubic of
        :func:`pvgraph.circuits.pvg32.tables.main_spool_area`, with the report's dead band and 7 mm
        area fixed) by least squares on the training flows, with the spool travel commanded by
@@ -324,6 +325,9 @@ def identify(train: list[Scenario], base: PVG32Params | None = None, *,
     if load_law not in ("quadratic", "laminar", "shared"):
         raise PvgraphError(f"identify: load_law must be 'quadratic', 'laminar' or 'shared', not "
                            f"{load_law!r}")
+    if meter_out not in (None, "overlap", "ratio"):
+        raise PvgraphError(f"identify: meter_out must be None, 'overlap' or 'ratio', not "
+                           f"{meter_out!r}")
     t0 = time.perf_counter()
     p = base or report_tuned()
     sources: dict[str, str] = {}
@@ -409,9 +413,6 @@ def identify(train: list[Scenario], base: PVG32Params | None = None, *,
     _, shape = _fit_shape_and_supply(p, U, Q, x_fixed=x, drop=drop, fit_supply=False)
     pb_res = np.mean([steady[s.name]["Pb"] - s.measured.Pb for s in pb_pts])
     overlap = None
-    if meter_out not in (None, "overlap", "ratio"):
-        raise PvgraphError(f"identify: meter_out must be None, 'overlap' or 'ratio', not "
-                           f"{meter_out!r}")
     if meter_out:
         # the neutral points' trapped pressure follows P_T (the leak divider, docs section
         # 11) and not the meter-out edges: they separate the return line from the edges
@@ -559,7 +560,7 @@ def cross_validate(groupings=("voltage", "load"), base: PVG32Params | None = Non
                    meter_out: str | None = None,
                    folds: list[str] | None = None) -> CrossValidation:
     """Leave one group out per grouping; identify on the rest; predict the group's steady
-    states. ``load_law``, ``measurement`` as in :func:`identify`; ``folds``: only the folds
+    states. ``load_law``, ``measurement``, ``meter_out`` as in :func:`identify`; ``folds``: only the folds
     whose key is listed (e.g. ``["U = 4.6 V"]``), for a quick look at one group."""
     base = base or report_tuned()
     scenarios = all_scenarios()
