@@ -106,6 +106,7 @@ def _cross_validate(args) -> None:
           "shape, return line, pump flow) re-identified without the held-out group\n")
     folds = getattr(args, "fold", None)
     cv = X.cross_validate(workers=args.workers or 2, folds=folds,
+                          meter_out=getattr(args, "meter_out", None),
                           progress=_progress(len(folds) if folds else 14, "cross-validating"))
     if not cv.folds:
         raise PvgraphError(f"--fold {folds}: no such fold; folds are named like 'U = 4.6 V', "
@@ -512,6 +513,11 @@ def _configure_validate(v) -> None:
     v.add_argument("--fold", action="append", metavar="KEY",
                    help="with --cross-validate: run only this fold (repeatable), e.g. "
                         "'U = 4.6 V' or 'L1 large, L3 large' (a quick look at one group)")
+    v.add_argument("--meter-out", choices=("overlap", "ratio"), default=None,
+                   help="with --cross-validate: also identify return edges of their own "
+                        "(A->T, B->T) with the return line from Pb: an extra overlap or "
+                        "A_out = A_H (r0 + r1 u) (docs/pvg32_model.md 8b; default: the "
+                        "report's one A_H)")
 
 
 def _configure_simulate(parser) -> None:

@@ -21,7 +21,8 @@ Identification (:func:`identify`)
        junction, so Pm - Pb = offset' + Q_total / K_hose over the closed-L2 points (B.7);
     1. load laws, per orifice setting, from the training tests' measured Q and dp (report
        4.7.2, eq. 4.132): Q = K dp + b dp |dp| with b >= 0 (non-negative least squares) where
-       the training data span two pressure levels, else the laminar Q = K dp;
+       the training data span two pressure levels, else Q = K dp (1 + beta dp) with beta the
+       mean b/K of the L1/L3 settings fitted at two levels (the laminar Q = K dp where none);
     2. supply voltage U_s and the shape of the main-spool opening A_H (the cubic of
        :func:`pvgraph.circuits.pvg32.tables.main_spool_area`, with the report's dead band and 7 mm
        area fixed) by least squares on the training flows, with the spool travel commanded by
@@ -144,7 +145,7 @@ def _solve(args):
             **readings(p, op["load.f.port.p"], op["load.m.port.p"], op["load.b.port.p"]),
             "x_m": op["pvg.pvb.main_spool.flange.x"],
             "drop": op["pvg.pvb.PK.port.p"] - op["load.f.port.p"],
-            "relief": op["pvg.pvp.A3.q"]}
+            "relief": op["pvg.pvp.A3.q"], "P_T": op["pvg.T.p"]}
 
 
 def steady_values(p: PVG32Params, scenarios: list[Scenario], pool=None, *,
@@ -234,6 +235,16 @@ def _fit_load_law(points, quadratic: bool = True) -> tuple[float, float, str]:
     return float(q @ dp / (dp @ dp)), 0.0, "laminar"
 
 
+def _fit_with_curvature(points, beta: float) -> tuple[float, float, str]:
+    """(K, b = beta K, law): Q = K dp (1 + beta |dp|) through ``points`` by least squares in K,
+    with the relative curvature ``beta`` [1/bar] given (taken from other settings)."""
+    dp = np.array([d for d, *_ in points])
+    q = np.array([v for _, v, *_ in points])
+    g = dp * (1.0 + beta * np.abs(dp))
+    k = float(q @ g / (g @ g))
+    return k, k * beta, f"K dp (1 + beta dp), beta = {beta:.4f}/bar shared"
+
+
 def _surrogate_x(U, Us, p: PVG32Params):
     e = p.pve
     return A_H_FIT_POSITION_SCALE * np.abs(e.input_gain * np.asarray(U) / Us + e.input_offset)
@@ -294,18 +305,29 @@ def _with_shape(p: PVG32Params, shape) -> PVG32Params:
 
 def identify(train: list[Scenario], base: PVG32Params | None = None, *,
              loads_from: list[Scenario] = (), pool=None,
-             load_law: str = "quadratic", measurement: bool = True) -> Identification:
+             load_law: str = "shared", measurement: bool = True,
+             meter_out: str | None = None) -> Identification:
     """Identify the data-derived parameters from ``train`` (module doc, steps 1-3).
 
     ``loads_from``: scenarios whose Q and dp may supply the law of an orifice setting the
     training set does not exercise (their Pf, Pm, Q_branch are then marked ``fit``).
-    ``load_law``: "quadratic" (Q = K dp + b dp |dp|) or "laminar" (the report's Q = K dp).
+    ``load_law``: "quadratic" (Q = K dp + b dp |dp|), "laminar" (the report's Q = K dp) or
+    "shared" (quadratic; a setting the training data show at one pressure level only takes
+    the mean relative curvature b/K of the L1/L3 settings seen at two levels, instead of
+    the laminar law).
     ``measurement``: identify the return hose and the Pb transducer offset (step 0) from the
     training set's closed-L2 points; False = ideal transducers, L1 and L3 end at node b.
+    ``meter_out``: identify the return edges, together with the return line, from the training
+    Pb (:func:`_fit_meter_out`) instead of the return line alone: "overlap" (an extra overlap,
+    ``main_spool.meter_out_overlap``) or "ratio" (A_out = A_H (r0 + r1 u),
+    ``main_spool.meter_out_area_ratio``); None = the report's one A_H for all four edges.
     """
-    if load_law not in ("quadratic", "laminar"):
-        raise PvgraphError(f"identify: load_law must be 'quadratic' or 'laminar', not "
+    if load_law not in ("quadratic", "laminar", "shared"):
+        raise PvgraphError(f"identify: load_law must be 'quadratic', 'laminar' or 'shared', not "
                            f"{load_law!r}")
+    if meter_out not in (None, "overlap", "ratio"):
+        raise PvgraphError(f"identify: meter_out must be None, 'overlap' or 'ratio', not "
+                           f"{meter_out!r}")
     t0 = time.perf_counter()
     p = base or report_tuned()
     sources: dict[str, str] = {}
@@ -329,14 +351,28 @@ def identify(train: list[Scenario], base: PVG32Params | None = None, *,
     # 1. load laws
     pts_train, pts_other = _load_points(train, c0c1), _load_points(loads_from, c0c1)
     sweep_updates = {}
-    for key in ("L1.small", "L1.large", "L3.small", "L3.large", "L3.sweep", "L2"):
+    keys = ("L1.small", "L1.large", "L3.small", "L3.large", "L3.sweep", "L2")
+    beta = None
+    if load_law == "shared":
+        # relative curvature b/K of the rig's needle orifices (L1, L3) fitted at two levels
+        ratios = []
+        for key in keys[:5]:
+            pts = pts_train.get(key) or pts_other.get(key)
+            if pts:
+                k, b, law = _fit_load_law(pts)
+                if law != "laminar":
+                    ratios.append(b / k)
+        beta = float(np.mean(ratios)) if ratios else None
+    for key in keys:
         pts, origin = pts_train.get(key), "training tests"
         if not pts and pts_other.get(key):
             pts, origin = pts_other[key], "the held-out tests' own Q/dp"
         if not pts:
             sources[key] = "table 4.8 (not exercised by the data)"
             continue
-        k, b, law = _fit_load_law(pts, quadratic=load_law == "quadratic")
+        k, b, law = _fit_load_law(pts, quadratic=load_law != "laminar")
+        if beta is not None and law == "laminar" and key != "L2":
+            k, b, law = _fit_with_curvature(pts, beta)
         names = sorted({n for *_, n, _ in pts})
         for *_, n, quantities in pts:
             fitted.update((n, q) for q in quantities)
@@ -376,14 +412,41 @@ def identify(train: list[Scenario], base: PVG32Params | None = None, *,
     drop = np.array([max(steady[s.name]["drop"], bar(0.5)) for s in flow_pts])
     _, shape = _fit_shape_and_supply(p, U, Q, x_fixed=x, drop=drop, fit_supply=False)
     pb_res = np.mean([steady[s.name]["Pb"] - s.measured.Pb for s in pb_pts])
+    overlap = None
+    if meter_out:
+        # the neutral points' trapped pressure follows P_T (the leak divider, docs section
+        # 11) and not the meter-out edges: they separate the return line from the edges
+        neutral = [s for s in train if _is_neutral(s)]
+        steady.update(steady_values(p, neutral, pool, sweep_load=sweep_updates))
+        pb_res, overlap = _fit_meter_out(p, shape, pb_pts + neutral, steady, meter_out)
+        fitted.update((s.name, "Pb") for s in neutral)
     q_ret = p.rig.pump_flow
     p_ret = q_ret / p.rig.return_line_K
     k_ret = q_ret / max(p_ret - pb_res, bar(0.1))
     updates = {"rig.return_line_K": k_ret}
+    if overlap is not None:
+        key = "meter_out_overlap" if meter_out == "overlap" else "meter_out_area_ratio"
+        p = p.model_copy(update={"main_spool": p.main_spool.model_copy(
+            update={key: overlap})})
+        text = (f"{overlap * 1e3:.3f} mm" if meter_out == "overlap" else
+                f"r0 = {overlap[0]:.3f}, r1 = {overlap[1] * 1e-3:.3f} /mm")
+        sources[f"main_spool.{key}"] = (f"{text} with the return line from Pb of "
+                                        f"{', '.join(s.name for s in pb_pts)}")
     if sat_pts:
         dq = np.mean([s.measured.Q_total - steady[s.name]["Q_total"] for s in sat_pts])
         updates["rig.pump_flow"] = p.rig.pump_flow + dq
     p = _with_shape(with_values(p, updates), shape)
+    if overlap is not None:
+        # the edges and P_T move the spool's flow force and the PVE's drain: A_H once more at
+        # the travel and drop of the model with them
+        again = steady_values(p, flow_pts, pool, sweep_load=sweep_updates)
+        bad = [n for n, v in again.items() if "error" in v]
+        if bad:
+            raise PvgraphError(f"identify: no steady state for {bad}: {again[bad[0]]['error']}")
+        x = np.array([abs(again[s.name]["x_m"]) for s in flow_pts])
+        drop = np.array([max(again[s.name]["drop"], bar(0.5)) for s in flow_pts])
+        _, shape = _fit_shape_and_supply(p, U, Q, x_fixed=x, drop=drop, fit_supply=False)
+        p = _with_shape(p, shape)
     fitted.update((s.name, "Q_total") for s in flow_pts + sat_pts)
     fitted.update((s.name, "Pb") for s in pb_pts)
     names = ", ".join(s.name for s in flow_pts)
@@ -398,6 +461,42 @@ def identify(train: list[Scenario], base: PVG32Params | None = None, *,
         (", ".join(s.name for s in sat_pts) if sat_pts else "table 4.9 (nominal 17 L/min: no "
                                                             "saturated point in the training set)"))
     return Identification(p, sources, sweep_updates, fitted, time.perf_counter() - t0)
+
+
+def _fit_meter_out(p: PVG32Params, shape, pts, steady, kind: str = "overlap"):
+    """(Pb shift [Pa], meter-out parameter): least squares of the training Pb to the model's
+    P_b - shift + (P_b - P_T) ((A_H / A_out)^2 - 1) at the model's steady states: P_b - P_T is
+    the meter-out drop, which return edges of their own multiply by the square of the area
+    ratio; the shift is the return line's. ``kind`` "overlap": A_out = A_H(u - overlap),
+    returns the overlap [m]; "ratio": A_out = A_H(u) (r0 + r1 u), returns (r0, r1 [1/m])."""
+    u = np.array([abs(steady[s.name]["x_m"]) for s in pts])
+    x = u
+    drop = np.array([0.0 if _is_neutral(s) else
+                     steady[s.name]["Pb"] - p.rig.pb_sensor_offset - steady[s.name]["P_T"]
+                     for s in pts])
+    pb = np.array([steady[s.name]["Pb"] for s in pts])
+    meas = np.array([s.measured.Pb for s in pts])
+    a = _area(p, shape, x)
+    u_min = float(min(v - p.main_spool.dead_band for v, s in zip(u, pts) if not _is_neutral(s)))
+
+    def resid(z):
+        shift, d = z[0] * bar(1.0), z[1] * 1e-3
+        ratio = (a / np.maximum(_area(p, shape, x - d), 1e-12)) ** 2
+        return (pb - shift + drop * (ratio - 1.0) - meas) / bar(1.0)
+
+    if kind == "ratio":
+        uu = (u - p.main_spool.dead_band) * 1e3               # [mm]
+
+        def resid_ratio(z):
+            ratio = np.maximum(z[1] + z[2] * uu, 0.05) ** -2
+            return (pb - z[0] * bar(1.0) + drop * (ratio - 1.0) - meas) / bar(1.0)
+        # the shift and r0 are nearly collinear: start from both ends, keep the best
+        sol = min((least_squares(resid_ratio, z0, bounds=([-20.0, 0.3, -1.0], [20.0, 3.0, 1.0]))
+                   for z0 in ([0.0, 1.0, 0.0], [-3.0, 1.2, 0.5])), key=lambda r: r.cost)
+        return float(sol.x[0]) * bar(1.0), (float(sol.x[1]), float(sol.x[2]) * 1e3)
+    hi = max(0.8 * u_min * 1e3, 1e-6)
+    sol = least_squares(resid, [0.0, min(0.02, hi / 2)], bounds=([-20.0, 0.0], [20.0, hi]))
+    return float(sol.x[0]) * bar(1.0), float(sol.x[1]) * 1e-3
 
 
 # ------------------------------------------------------------------------------ cross-validation
@@ -457,10 +556,11 @@ def _fold(args):
 
 def cross_validate(groupings=("voltage", "load"), base: PVG32Params | None = None, *,
                    workers: int = 2, progress=None,
-                   load_law: str = "quadratic", measurement: bool = True,
+                   load_law: str = "shared", measurement: bool = True,
+                   meter_out: str | None = None,
                    folds: list[str] | None = None) -> CrossValidation:
     """Leave one group out per grouping; identify on the rest; predict the group's steady
-    states. ``load_law``, ``measurement`` as in :func:`identify`; ``folds``: only the folds
+    states. ``load_law``, ``measurement``, ``meter_out`` as in :func:`identify`; ``folds``: only the folds
     whose key is listed (e.g. ``["U = 4.6 V"]``), for a quick look at one group."""
     base = base or report_tuned()
     scenarios = all_scenarios()
@@ -476,7 +576,8 @@ def cross_validate(groupings=("voltage", "load"), base: PVG32Params | None = Non
             if folds is not None and key not in folds:
                 continue
             jobs.append((g, key, train, test, base,
-                         {"load_law": load_law, "measurement": measurement}))
+                         {"load_law": load_law, "measurement": measurement,
+                          "meter_out": meter_out}))
     t0 = time.perf_counter()
     records, folds = [], []
     if workers > 1:

@@ -209,6 +209,25 @@ def main_spool_opening(p: PVG32Params) -> tables.AreaTable:
         position_scale=A_H_FIT_POSITION_SCALE, shape=m.opening_shape)
 
 
+METER_OUT_MIN_RATIO = 0.05
+
+
+def _shifted(area: tables.AreaTable, overlap: float, dead_band: float = 0.0,
+             ratio: tuple[float, float] = (1.0, 0.0)) -> tables.AreaTable:
+    """The meter-out edge from the meter-in ``area``: its opening moved ``overlap`` further from
+    x = 0 on both sides and scaled by r0 + r1 u, u = |x| - dead_band:
+    A_out(x) = A(sign(x) max(|x| - overlap, 0)) max(r0 + r1 u, METER_OUT_MIN_RATIO)."""
+    x0 = np.asarray(area.x, dtype=float)
+    x = np.unique(np.concatenate([x0, np.sign(x0) * (np.abs(x0) + overlap)]))
+    x = x[(x >= x0[0]) & (x <= x0[-1])]
+    xs = np.sign(x) * np.clip(np.abs(x) - overlap, 0.0, None)
+    r0, r1 = ratio
+    scale = np.maximum(r0 + r1 * np.clip(np.abs(x) - dead_band, 0.0, None), METER_OUT_MIN_RATIO)
+    return tables.AreaTable(f"{area.name}_out", x, np.asarray(area(xs)) * scale,
+                            f"{area.source}; meter-out: overlap + {overlap * 1e3:.3f} mm, "
+                            f"ratio {r0:.3f} + {r1 * 1e-3:.3f}/mm u")
+
+
 def opening_areas(p: PVG32Params | None = None) -> dict[str, tables.AreaTable]:
     """The opening-area tables the model's spool edges use, by report symbol."""
     p = p or report_tuned()
@@ -247,8 +266,15 @@ def build_pvb(p: PVG32Params | None = None) -> Circuit:
     neg = _table(a_h, lambda x: x < 0.0)
     p_a = c.add("PA", VariableOrifice(opens="positive", **edge, **pos))
     p_b = c.add("PB", VariableOrifice(opens="negative", **edge, **neg))
-    a_t = c.add("AT", VariableOrifice(opens="negative", **edge, **neg))
-    b_t = c.add("BT", VariableOrifice(opens="positive", **edge, **pos))
+    if m.meter_out_overlap > 0.0 or tuple(m.meter_out_area_ratio) != (1.0, 0.0):
+        # return edges of their own (parameters.MainSpoolParams.meter_out_overlap, _area_ratio)
+        a_out = _shifted(a_h, m.meter_out_overlap, m.dead_band, m.meter_out_area_ratio)
+        pos_out = _table(a_out, lambda x: x > 0.0)
+        neg_out = _table(a_out, lambda x: x < 0.0)
+    else:
+        pos_out, neg_out = pos, neg
+    a_t = c.add("AT", VariableOrifice(opens="negative", **edge, **neg_out))
+    b_t = c.add("BT", VariableOrifice(opens="positive", **edge, **pos_out))
     # load-sense pick-up from the fed work port (no flow force: theta = 90 deg)
     pick = dict(x_dead=m.dead_band, w=LS_PICKUP_AREA / 1e-3, A_max=LS_PICKUP_AREA,
                 theta=np.pi / 2, **_fluid(p))

@@ -331,6 +331,21 @@ class MainSpoolParams(_Params):
                     "metered flow (< 0.01 L/min), but in neutral the four equal leaks hold the "
                     "closed work ports at (P_K + P_T) / 2, with a time constant of about 17 s "
                     "for the rig's 0.63 L of hoses; 0 = no leakage (the report)")
+    meter_out_overlap: float = Field(
+        0.0, ge=0.0, le=mm(1.0),
+        description="Extra overlap of the meter-out edges A->T and B->T beyond dead_band [m]: "
+                    "A_out(x_m) = A_H(|x_m| - meter_out_overlap). The report uses one A_H for "
+                    "all four edges (4.4.2, eq 4.84); spools are often cut with the return edges "
+                    "opening later. 0 = the report. Identifiable only weakly from Pb (Pb - P_T "
+                    "is the meter-out drop): docs/pvg32_model.md section 8b")
+    meter_out_area_ratio: tuple[float, float] = Field(
+        (1.0, 0.0),
+        description="Meter-out edges A->T and B->T as a multiple of the meter-in opening: "
+                    "A_out(x_m) = A_H(x_m) max(r0 + r1 u, 0.05), u = |x_m| - dead_band, given as "
+                    "(r0 [-], r1 [1/m]). The report uses one A_H for all four edges (4.4.2, eq "
+                    "4.84): (1, 0). Pb - P_T is the meter-out drop, so the rig's Pb, which falls "
+                    "with the travel, identifies it (circuits.crossval.identify(meter_out="
+                    "'ratio'); docs/pvg32_model.md section 8b)")
     opening_shape: tuple[float, float] | None = Field(
         TUNED_OPENING_SHAPE,
         description="Shape (c2 [-], c3 [1/m]) of the metering opening A_H = c1 u + c2 u^2 + "

@@ -51,3 +51,22 @@ def test_hose_in_series_and_the_reading_offset():
     assert op["load.return_hose.q"] == pytest.approx(q, rel=1e-9)
     r = readings(p, pf, pm, pb)
     assert (r["Pf"], r["Pm"], r["Pb"]) == (pf, pm, pb + offset)
+
+
+def test_meter_out_edges_of_their_own_scale_the_return_drop():
+    """main_spool.meter_out_area_ratio = (r0, 0) multiplies the return edge's area by r0: the
+    orifice law (eq. 4.84) then gives the meter-out drop Pb - P_T at a given flow 1/r0^2 times
+    the drop with the report's one A_H; the meter-in side (flow within 2 %) is untouched."""
+    p0 = report_tuned()
+    p2 = p0.model_copy(update={"main_spool": p0.main_spool.model_copy(
+        update={"meter_out_area_ratio": (2.0, 0.0)})})
+    per_q2 = []
+    flows = []
+    for p in (p0, p2):
+        system = build_rig(p, load=laminar_load(p, L3="large"), U_input=4.45).compile()
+        op = steady_state(system, tol=1e-10)
+        q = op["load.L3.q"]
+        per_q2.append((op["load.b.port.p"] - op["pvg.T.p"]) / q**2)
+        flows.append(q)
+    assert per_q2[1] / per_q2[0] == pytest.approx(0.25, rel=0.01)
+    assert flows[1] == pytest.approx(flows[0], rel=0.02)
