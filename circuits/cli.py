@@ -64,9 +64,14 @@ def cmd_validate(args) -> int:
     roles = _validation_roles(args, names)
     print(V.format_table(results, roles))
     print()
+    from .crossval import held_out_target
     for label, (ok, total, rows) in V.targets(results, roles).items():
-        print(f"  {'PASS' if ok == total else 'miss'}  {label}: {ok}/{total} "
-              f"({V.role_breakdown(rows)})")
+        # the settling target is a prediction (no parameter is identified from transients);
+        # the others are judged on every point here, fitted ones included
+        need = held_out_target(label, total) if label == "settled within 0.5 s" else total
+        aim = "" if need == total else f"; target >= {need} of {total}, aim {total}"
+        print(f"  {'PASS' if ok >= need else 'miss'}  {label}: {ok}/{total} "
+              f"({V.role_breakdown(rows)}{aim})")
     print(f"  {V.margin_statement(params)}")
     json_path = args.json or os.path.join(args.out, "validation.json")
     _write_json_atomic(json_path, V.comparison_records(results, roles))

@@ -634,6 +634,19 @@ def _count(rows):
     return sum(ok for *_, ok in rows), len(rows), rows
 
 
+#: Share of held-out points a target asks for: flow within 1 L/min at 15 of the 17 non-neutral
+#: points, Pf, Pm and Pb within 2 bar at 10 of the 12 step tests and at every non-neutral sweep
+#: point, settled within 0.5 s in 18 of the 19 scenarios. Labels not listed ask for all.
+HELD_OUT_TARGETS = {"flow within 1 L/min (non-neutral points)": 15 / 17,
+                    "Pf, Pm, Pb within 2 bar (step tests)": 10 / 12,
+                    "settled within 0.5 s": 18 / 19}
+
+
+def held_out_target(label: str, total: int) -> int:
+    """How many of ``total`` held-out points the target for ``label`` asks to pass."""
+    return math.ceil(HELD_OUT_TARGETS.get(label, 1.0) * total - 1e-9)
+
+
 def format_cross_validation(cv: CrossValidation) -> str:
     """Per grouping: one row per held-out scenario (errors and roles), then the targets."""
     lines = []
@@ -663,8 +676,10 @@ def format_cross_validation(cv: CrossValidation) -> str:
                 lines.append(f"  n/a   held-out {label}: none held out ({why})")
                 continue
             worst = max(e for _, e, _ in rows)
-            lines.append(f"  {'PASS' if ok == total else 'miss'}  held-out {label}: "
-                         f"{ok}/{total} (worst {worst:.2f})")
+            need = held_out_target(label, total)
+            verdict = "PASS" if ok >= need else "miss"
+            aim = "" if need == total else f"; target >= {need} of {total}, aim {total}"
+            lines.append(f"  {verdict}  held-out {label}: {ok}/{total} (worst {worst:.2f}{aim})")
         lines.append("")
     lines.append(f"{len(cv.folds)} folds, {cv.wall_time:.1f} s wall on {cv.workers} "
                  f"process(es) (steady states)")

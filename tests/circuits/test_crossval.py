@@ -155,3 +155,13 @@ def test_identify_rejects_an_unknown_meter_out_law():
     from pvgraph.errors import PvgraphError
     with pytest.raises(PvgraphError, match="meter_out"):
         X.identify(all_scenarios(), meter_out="larger")
+
+
+def test_held_out_targets_are_the_stated_shares():
+    """15 of 17 flows, 10 of 12 step tests, every sweep point; subsets round up."""
+    from pvgraph.circuits.crossval import held_out_target
+    assert held_out_target("flow within 1 L/min (non-neutral points)", 17) == 15
+    assert held_out_target("Pf, Pm, Pb within 2 bar (step tests)", 12) == 10
+    assert held_out_target("Pf, Pm, Pb within 2 bar (step tests)", 3) == 3
+    assert held_out_target("Pf, Pm, Pb within 2 bar (non-neutral sweep points)", 5) == 5
+    assert held_out_target("settled within 0.5 s", 19) == 18
