@@ -74,7 +74,8 @@ class CylinderParams(FluidCompliance):
     @model_validator(mode="after")
     def _geometry(self):
         if self.A_rod >= self.A_A:
-            raise ValueError(f"A_rod ({self.A_rod!r}) must be smaller than A_A ({self.A_A!r})")
+            raise ValueError(f"A_rod ({self.A_rod:.6g} m^2) must be smaller than A_A "
+                             f"({self.A_A:.6g} m^2)")
         if self.l_cush >= 0.5 * self.stroke:
             raise ValueError(f"l_cush ({self.l_cush!r} m) must be below half the stroke")
         if self.d_cush > 0.0 and self.l_cush == 0.0:
