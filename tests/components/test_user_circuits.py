@@ -318,3 +318,24 @@ def test_volume_orifice_pole():
     dp = drop(2e-6, Q, build({"Q": Q})["orifice"].params.transition())
     (pole,) = model.poles()
     assert pole.real == pytest.approx(-(BETA / 0.5e-3) * Q / (2 * dp), rel=1e-5)
+
+
+# --- machine-scale positions ---------------------------------------------------------------------
+def test_a_load_resting_on_a_stop_two_metres_up():
+    """Stops and grounds take machine-scale positions: a load rests m g / k into its stop."""
+    from pvgraph.components import EndStop, Fixed, TwoFlangeSpring
+    c = Circuit("stop")
+    body = c.add("body", Mass(m="100 kg", g=-9.81, x0=1.5))   # starts touching the stop
+    stop = c.add("stop", EndStop(x_min=1.5, x_max=3.0, k=1e7, d=2e4))
+    c.connect(body.flange, stop.flange)
+    op = steady_state(c.compile())
+    # m g / k = 98.1 um into the stop; the rounding (eps = 0.1 um) moves it by 2.5e-11 m
+    assert op["body.flange.x"] == pytest.approx(1.5 - 100 * 9.81 / 1e7, abs=1e-10)
+    c = Circuit("hang")
+    top = c.add("top", Fixed(x0=2.5))
+    spring = c.add("spring", TwoFlangeSpring(k=1e4))
+    body = c.add("body", Mass(m="10 kg", g=-9.81, x0=2.5))
+    c.connect(body.flange, spring.a)
+    c.connect(spring.b, top.flange)
+    op = steady_state(c.compile())
+    assert op["body.flange.x"] == pytest.approx(2.5 - 10 * 9.81 / 1e4, abs=1e-12)
