@@ -201,7 +201,9 @@ def _newton(sc, y, tol, max_iter, c=0.0, y_prev=None):
                 break
             lam *= 0.5
         else:
-            return y, fn, it, False
+            # no descent left: round-off. On a continuation step (c > 0) the terms c (y - y_prev)
+            # set a floor of about eps c |y|, above a tight tolerance; the step is good enough
+            return y, fn, it, c != 0.0 and fn <= 1e-6
         step = np.max(np.abs(lam * dy) / (np.abs(y) + sc.xs)) if n else 0.0
         y, fn = y_new, fn_new
         if step < 1e-14 and fn <= max(tol, 1e-6):  # round-off floor of the residual

@@ -325,7 +325,7 @@ def test_a_load_resting_on_a_stop_two_metres_up():
     """Stops and grounds take machine-scale positions: a load rests m g / k into its stop."""
     from pvgraph.components import EndStop, Fixed, TwoFlangeSpring
     c = Circuit("stop")
-    body = c.add("body", Mass(m="100 kg", g=-9.81, x0=1.5))   # starts touching the stop
+    body = c.add("body", Mass(m="100 kg", g=-9.81, x0=1.6))   # starts 0.1 m above it
     stop = c.add("stop", EndStop(x_min=1.5, x_max=3.0, k=1e7, d=2e4))
     c.connect(body.flange, stop.flange)
     op = steady_state(c.compile())
@@ -339,3 +339,39 @@ def test_a_load_resting_on_a_stop_two_metres_up():
     c.connect(spring.b, top.flange)
     op = steady_state(c.compile())
     assert op["body.flange.x"] == pytest.approx(2.5 - 10 * 9.81 / 1e4, abs=1e-12)
+
+
+def test_pressure_compensated_pump_holds_its_cut_off_band():
+    """eps = 1 - ramp(p; p_c - dp_reg, dp_reg) and q = eps D w - K dp, through an orifice."""
+    from pvgraph.components import PressureCompensatedPump
+    c = Circuit("pc")
+    motor = c.add("motor", SpeedSource(w0="1500 rpm"))
+    pump = c.add("pump", PressureCompensatedPump(D="28 cm^3/rev", p_c="200 bar"))
+    node = c.add("node", VolumeNode(V="1 L"))
+    load = c.add("load", Orifice(A="2 mm^2"))
+    tank = c.add("tank", Tank())
+    c.connect(motor.shaft, pump.shaft)
+    c.connect(tank.port, pump.a, load.b)
+    c.connect(pump.b, node.port, load.a)
+    op = steady_state(c.compile())
+    D, w = 28e-6 / (2 * math.pi), 50 * math.pi
+    K = 0.05 * D * 157.08 / 2e7
+    p, eps = op["node.port.p"], op["pump.eps"]
+    assert 195e5 < p < 200e5
+    s = (p - 195e5) / 5e5
+    assert eps == pytest.approx(1 - s * s * (3 - 2 * s), rel=1e-9)
+    assert eps * D * w - K * p == pytest.approx(turbulent(2e-6, p, load.params.transition()),
+                                                rel=1e-9)
+
+
+def test_machine_circuits_round_trip_through_a_model_file(tmp_path):
+    """Export to TOML and back: the same equations give the same operating point and run."""
+    from pvgraph import modelfile
+    dp, _, _ = relief_closed_form()
+    modelfile.save(pump_relief(), tmp_path / "relief.toml")
+    op = steady_state(modelfile.load(tmp_path / "relief.toml").compile())
+    assert op["node.port.p"] == pytest.approx(dp, rel=1e-7)
+    modelfile.save(cylinder_circuit(), tmp_path / "cyl.json")
+    sol = simulate(modelfile.load(tmp_path / "cyl.json"), t_end=1.5)
+    assert sol.der("cyl.flange.x")[np.searchsorted(sol.t, 1.45)] == \
+        pytest.approx(-Q_CYL / (A_A - A_ROD), rel=1e-4)
