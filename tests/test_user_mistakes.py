@@ -319,3 +319,30 @@ def test_cylinder_with_a_rod_wider_than_its_piston_names_both_areas():
     with pytest.raises(ParameterError, match=r"A_rod \(0.0002 m\^2\) must be smaller than A_A "
                                              r"\(0.0001 m\^2\)"):
         Cylinder(A_A="100 mm^2", A_rod="200 mm^2", stroke=0.1, V_dead_A=1e-5, V_dead_B=1e-5)
+
+
+def test_a_load_starting_outside_the_cylinder_stroke_is_named():
+    from pvgraph.components import Cylinder, Mass
+
+    def run(x0):
+        c = Circuit("x")
+        cyl = c.add("cyl", Cylinder(A_A="1963 mm^2", A_rod="600 mm^2", stroke="0.5 m",
+                                    V_dead_A="0.01 L", V_dead_B="0.01 L"))
+        load = c.add("load", Mass(m="10 kg", x0=x0))
+        tank = c.add("tank", Tank())
+        src = c.add("src", FlowSource(Q="1 L/min"))
+        c.connect(cyl.flange, load.flange)
+        c.connect(src.port, cyl.A)
+        c.connect(cyl.B, tank.port)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            sol = simulate(c, 0.5)
+        return sol, [str(w.message) for w in caught if w.category is PlausibilityWarning]
+
+    sol, found = run(0.8)
+    assert len(found) == 1
+    assert found[0].startswith("cyl: the rod is more than 1 mm past its end stop at x = stroke")
+    assert "its x0" in found[0]
+    sol, found = run(0.499)                # runs into the stop at 1 L/min: within 1 mm, silent
+    assert found == []
+    assert 0.5 < sol.final("cyl.flange.x") < 0.5 + 1e-3
