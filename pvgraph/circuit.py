@@ -109,6 +109,22 @@ def _keep(key, system) -> None:
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
+#: components that join two domains, for the message on a node that mixes them
+_CONVERTERS = {
+    frozenset({"hydraulic", "mechanical"}): "a component that converts (e.g. PistonChamber or "
+                                            "Cylinder)",
+    frozenset({"hydraulic", "rotational"}): "a pump or a motor (e.g. FixedDisplacementPump, "
+                                            "HydraulicMotor)",
+    frozenset({"hydraulic", "signal"}): "a sensor or a signal-driven source (PressureSensor, "
+                                        "FlowSensor; PressureInput, FlowInput)",
+    frozenset({"mechanical", "signal"}): "a sensor or a signal-driven source (PositionSensor, "
+                                         "VelocitySensor, ForceSensor; ForceInput, PositionInput)",
+    frozenset({"rotational", "signal"}): "a sensor or a signal-driven source (SpeedSensor, "
+                                         "AngleSensor, TorqueSensor; TorqueInput, SpeedInput)",
+    frozenset({"mechanical", "rotational"}): "a transmission (e.g. RackPinion)",
+}
+
+
 class Circuit:
     """A named collection of components and connections; itself usable as a component."""
 
@@ -157,10 +173,12 @@ class Circuit:
         domains = {r.port.domain.name for r in refs}
         if len(domains) > 1:
             desc = ", ".join(f"{r.path()} ({r.port.domain.name})" for r in refs)
+            via = _CONVERTERS.get(frozenset(domains) if len(domains) == 2 else None,
+                                  "a component that converts between them")
             raise ConnectionError_(
                 f"circuit {self.path!r}: incompatible domains joined in one node: {desc}. A node "
-                f"joins ports of one domain only; a hydraulic port meets a mechanical one through "
-                f"a component that converts (e.g. PistonChamber or Cylinder).")
+                f"joins ports of one domain only; {' and '.join(sorted(domains))} ports meet "
+                f"through {via}.")
         self._connections.append(refs)
 
     def expose(self, name: str, inner, description: str = "") -> PortRef:
@@ -457,12 +475,21 @@ def _pressure_islands(circuit: Circuit) -> list[dict]:
             refs.update((path, n) for n in hyd)
             continue
         used = set()
+        # an internal flow (a line's q) carries flow between the ports whose equations hold it
+        carriers = [v for v, var in getattr(comp, "variables", {}).items()
+                    if var.unit == "m^3/s"]
+        held: dict[str, str] = {}
         for r in residuals:
             leaves_r = {f"{op}:{name}" for op, name in E.leaves(r, ("sym", "der"))}
             used |= leaves_r
             flows = [n for n in hyd if f"sym:{path}.{n}.q" in leaves_r]
             for a, b in zip(flows, flows[1:]):
                 join((path, a), (path, b))
+            for v in carriers:
+                if flows and (f"sym:{path}.{v}" in leaves_r or f"der:{path}.{v}" in leaves_r):
+                    if v in held:
+                        join((path, held[v]), (path, flows[0]))
+                    held[v] = flows[0]
         for n in hyd:
             if f"sym:{path}.{n}.p" in used and f"sym:{path}.{n}.q" not in used:
                 refs.add((path, n))

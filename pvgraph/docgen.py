@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import textwrap
 import re
 import sys
 from pathlib import Path
@@ -46,6 +47,21 @@ def _first_paragraph(doc: str | None) -> str:
     text = inspect.cleandoc(doc).split("\n\n", 1)[0]
     text = _ROLE.sub(lambda m: f"`{m.group(1)}`", text)
     return " ".join(line.strip() for line in text.splitlines())
+
+
+def _body(doc: str | None) -> list[str]:
+    """The paragraphs of a class docstring as Markdown lines: text joined, ``::`` blocks fenced."""
+    if not doc:
+        return [""]
+    out = []
+    for para in inspect.cleandoc(doc).split("\n\n"):
+        lines = para.splitlines()
+        if all(line.startswith("    ") for line in lines):
+            out += ["```", *textwrap.dedent(para).splitlines(), "```", ""]
+            continue
+        text = _ROLE.sub(lambda m: f"`{m.group(1)}`", " ".join(x.strip() for x in lines))
+        out += [text[:-1] if text.endswith("::") else text, ""]
+    return out[:-1]
 
 
 def _cell(text) -> str:
@@ -107,7 +123,7 @@ def _param_rows(params: type[Params]) -> list[str]:
 
 
 def _component_section(cls) -> list[str]:
-    out = [f"### {cls.__name__}", "", _first_paragraph(cls.__doc__), "",
+    out = [f"### {cls.__name__}", "", *_body(cls.__doc__), "",
            f"Module `{cls.__module__}`.", ""]
     if cls.ports:
         out += _port_rows(cls) + [""]

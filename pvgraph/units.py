@@ -125,7 +125,7 @@ _UNITS = {
     "lpm": (LPM, _dim(m=3, s=-1), False), "gpm": (3.785411784e-3 / 60.0, _dim(m=3, s=-1), False),
     "cc": (1e-6, _dim(m=3), False), "in": (0.0254, _dim(m=1), False),
     "rad": (1.0, _ONE, False), "deg": (math.pi / 180.0, _ONE, False),
-    "rpm": (2.0 * math.pi / 60.0, _dim(s=-1), False),
+    "rpm": (2.0 * math.pi / 60.0, _dim(s=-1), False), "rev": (2.0 * math.pi, _ONE, False),
     "%": (0.01, _ONE, False), "-": (1.0, _ONE, False), "1": (1.0, _ONE, False),
 }
 _PREFIXES = {"p": 1e-12, "n": 1e-9, "u": 1e-6, "µ": 1e-6, "μ": 1e-6, "m": 1e-3, "c": 1e-2,

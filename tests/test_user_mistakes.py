@@ -8,7 +8,8 @@ import pytest
 from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
 from pvgraph.components.hydraulic import Plug, Pump
 from pvgraph.components.hydraulic.variable_orifice import VariableOrifice
-from pvgraph.components.mechanical import Fixed, ForceInput, SpoolMass
+from pvgraph.components.mechanical import Fixed, ForceInput, Inertia, SpoolMass
+from pvgraph.components.signal import Constant
 from pvgraph import Circuit
 from pvgraph.errors import (CircuitError, ConnectionError_, ParameterError, PlausibilityWarning,
                             PvgraphError,
@@ -263,3 +264,85 @@ def test_parameter_values_that_would_mislead_get_named_errors(value, message):
         Orifice(A=value)
     assert "invalid parameters for Orifice" in str(exc.value) and message in str(exc.value)
 
+
+
+def test_displacement_and_speed_per_revolution():
+    from pvgraph.components import FixedDisplacementPump, HydraulicMotor, SpeedSource
+    assert FixedDisplacementPump(D="28 cm^3/rev").params.D == \
+        pytest.approx(28e-6 / (2 * math.pi), rel=1e-15)
+    assert HydraulicMotor(D="10 cc/rev").params.D == pytest.approx(1e-5 / (2 * math.pi), rel=1e-15)
+    assert SpeedSource(w0="1500 rev/min").params.w0 == pytest.approx(50 * math.pi, rel=1e-15)
+    assert SpeedSource(w0="1500 rpm").params.w0 == pytest.approx(50 * math.pi, rel=1e-15)
+    with pytest.raises(ParameterError, match="is a pressure, but D is a volume"):
+        FixedDisplacementPump(D="28 bar")
+
+
+def test_segmented_line_takes_a_length_with_a_unit():
+    from pvgraph.components.hydraulic import segmented_line
+    line = segmented_line(5, l="10 m", d="12 mm")
+    assert line["s0"].params.l == pytest.approx(2.0, rel=1e-15)
+    with pytest.raises(ParameterError, match="l = '10 bar' is a pressure, but l is a length"):
+        segmented_line(5, l="10 bar", d="12 mm")
+
+
+def test_a_line_between_two_volumes_is_one_network_with_a_reference():
+    """A line carries its flow in an internal state: its ends are one hydraulic network."""
+    from pvgraph.components.hydraulic import segmented_line
+    c = Circuit("line")
+    pump = c.add("pump", FlowSource(Q="5 L/min"))
+    line = c.add("line", segmented_line(3, l="3 m", d="10 mm"))
+    tank = c.add("tank", Tank())
+    c.connect(pump.port, line.a)
+    c.connect(line.b, tank.port)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        c.compile()
+
+
+@pytest.mark.parametrize("other, port, domain, hint", [
+    (Constant(k=1.0), "y", "signal", "PressureSensor"),
+    (Inertia(J=1.0), "shaft", "rotational", "HydraulicMotor"),
+    (SpoolMass(m=1.0), "flange", "mechanical", "Cylinder"),
+])
+def test_incompatible_domains_name_the_converting_components(other, port, domain, hint):
+    c = Circuit("mix")
+    x = c.add("x", other)
+    o = c.add("o", Orifice(A="1 mm^2"))
+    with pytest.raises(ConnectionError_) as exc:
+        c.connect(getattr(x, port), o.a)
+    msg = str(exc.value)
+    assert f"x.{port} ({domain}), o.a (hydraulic)" in msg and hint in msg
+
+
+def test_cylinder_with_a_rod_wider_than_its_piston_names_both_areas():
+    from pvgraph.components import Cylinder
+    with pytest.raises(ParameterError, match=r"A_rod \(0.0002 m\^2\) must be smaller than A_A "
+                                             r"\(0.0001 m\^2\)"):
+        Cylinder(A_A="100 mm^2", A_rod="200 mm^2", stroke=0.1, V_dead_A=1e-5, V_dead_B=1e-5)
+
+
+def test_a_load_starting_outside_the_cylinder_stroke_is_named():
+    from pvgraph.components import Cylinder, Mass
+
+    def run(x0):
+        c = Circuit("x")
+        cyl = c.add("cyl", Cylinder(A_A="1963 mm^2", A_rod="600 mm^2", stroke="0.5 m",
+                                    V_dead_A="0.01 L", V_dead_B="0.01 L"))
+        load = c.add("load", Mass(m="10 kg", x0=x0))
+        tank = c.add("tank", Tank())
+        src = c.add("src", FlowSource(Q="1 L/min"))
+        c.connect(cyl.flange, load.flange)
+        c.connect(src.port, cyl.A)
+        c.connect(cyl.B, tank.port)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            sol = simulate(c, 0.5)
+        return sol, [str(w.message) for w in caught if w.category is PlausibilityWarning]
+
+    sol, found = run(0.8)
+    assert len(found) == 1
+    assert found[0].startswith("cyl: the rod is more than 1 mm past its end stop at x = stroke")
+    assert "its x0" in found[0]
+    sol, found = run(0.499)                # runs into the stop at 1 L/min: within 1 mm, silent
+    assert found == []
+    assert 0.5 < sol.final("cyl.flange.x") < 0.5 + 1e-3

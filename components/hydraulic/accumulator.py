@@ -71,7 +71,12 @@ class GasAccumulatorParams(Params):
 
 
 class GasAccumulator(Component):
-    """Gas-charged accumulator: polytropic gas, precharge, bottoming (``der(V_oil) = port.q``)."""
+    """Gas-charged accumulator: polytropic gas, precharge, bottoming (``der(V_oil) = port.q``).
+
+    Above the precharge ``(p + p_atm) (V0 - V_oil)^n = (p_pre + p_atm) V0^n`` (gauge ``p``;
+    ``n = 1`` isothermal, 1.4 adiabatic); the observed ``p_gas`` follows it exactly and the port
+    pressure to within ``dp_b = 1e-3 (p_pre + p_atm)``, the band over which bottoming is smoothed.
+    """
 
     Params = GasAccumulatorParams
     ports = {"port": Hydraulic("oil connection")}

@@ -26,14 +26,19 @@ Cushioning: over the last ``l_cush`` of travel at each end a viscous force ``d_c
 the rod, faded in smoothly (``w_hi``, ``w_lo`` rise from 0 to 1 across the cushion length); this
 is the lumped effect of the throttled outflow of a cushion spear. Observed: ``F_stop``,
 ``penetration`` (past the stroke, positive; before 0, negative) and the chamber volumes.
+A rod more than 1 mm past an end (a load starting outside the stroke, a force the stop cannot
+hold) raises a :class:`PlausibilityWarning` once, naming the cylinder.
 """
 
 from __future__ import annotations
+
+import warnings
 
 from pydantic import Field, model_validator
 
 from pvgraph import expr as E
 from pvgraph.component import Component, Hydraulic, Mechanical, der
+from pvgraph.errors import PlausibilityWarning
 
 from ..mechanical.laws import onset_indicator, onset_penetration
 from .fluid import cavitation_warning
@@ -44,6 +49,28 @@ def _cushion_weight(depth, length):
     """0 more than ``length`` before the end, 1 at and past it: smoothstep across the cushion."""
     s = E.clip(depth / length + 1.0, 0.0, 1.0)
     return s * s * (3.0 - 2.0 * s)
+
+
+#: how far past an end stop the rod may go before the cylinder warns [m]
+OVERRUN = 1e-3
+
+
+def _overrun_warning(v, x, p):
+    """Warn once when the rod is more than OVERRUN past an end (at the start, too)."""
+    path = v._prefix
+    done = v.mode("overrun")
+    stroke = f" (stroke {p.stroke:g} m)" if isinstance(p.stroke, (int, float)) else ""
+    for name, depth, end in (("overrun_hi", x - p.stroke, "x = stroke"), ("overrun_lo", -x,
+                                                                         "x = 0")):
+        def action(modes, end=end):
+            modes["overrun"] = 1.0
+            warnings.warn(PlausibilityWarning(
+                f"{path}: the rod is more than {OVERRUN * 1e3:g} mm past its end stop at "
+                f"{end}{stroke}. Does the load on the rod start outside the stroke (its x0), "
+                f"or push harder than the stop (k_stop) can hold?"),
+                stacklevel=2)
+        v.event(name, E.where(done < 0.5, depth - OVERRUN, -1.0), direction=1, action=action,
+                at_start=True)
 
 
 class CylinderParams(FluidCompliance):
@@ -74,7 +101,8 @@ class CylinderParams(FluidCompliance):
     @model_validator(mode="after")
     def _geometry(self):
         if self.A_rod >= self.A_A:
-            raise ValueError(f"A_rod ({self.A_rod!r}) must be smaller than A_A ({self.A_A!r})")
+            raise ValueError(f"A_rod ({self.A_rod:.6g} m^2) must be smaller than A_A "
+                             f"({self.A_A:.6g} m^2)")
         if self.l_cush >= 0.5 * self.stroke:
             raise ValueError(f"l_cush ({self.l_cush!r} m) must be below half the stroke")
         if self.d_cush > 0.0 and self.l_cush == 0.0:
@@ -93,7 +121,7 @@ class Cylinder(Component):
     """Double-acting differential cylinder with chambers A (cap) and B (rod) and end stops."""
 
     Params = CylinderParams
-    modes = {"cavitated_A": 0.0, "cavitated_B": 0.0}
+    modes = {"cavitated_A": 0.0, "cavitated_B": 0.0, "overrun": 0.0}
     ports = {"A": Hydraulic("cap-side chamber"), "B": Hydraulic("rod-side chamber"),
              "flange": Mechanical("the rod: position x from fully retracted")}
 
@@ -122,6 +150,7 @@ class Cylinder(Component):
                            "end-stop and cushion force (on the rod in -x)")
         cavitation_warning(v, p_A, p, "chamber A", "cavitated_A")
         cavitation_warning(v, p_B, p, "chamber B", "cavitated_B")
+        _overrun_warning(v, x, p)
         return [chamber_continuity(V_A, p_A, v.A.q - q_leak, p.A_A, x, p),
                 chamber_continuity(V_B, p_B, v.B.q + q_leak, -p.A_B, x, p),
                 v.flange.f + F - F_stop]

@@ -89,7 +89,12 @@ def line_friction(q, p: PiLineParams):
 
 
 class PiLine(Component):
-    """Pipe or hose as one pi-section: end capacitances, inertance and friction."""
+    """Pipe or hose as one pi-section: end capacitances, inertance and friction.
+
+    Steady friction drop, laminar (Hagen-Poiseuille): ``dp = 128 rho nu l q / (pi d^4)``;
+    ``friction="blended"`` (the default) follows Blasius above Re ~ 1189. For a distributed
+    line, ``segmented_line(n, l=..., d=...)`` chains ``n`` sections (ports ``a``, ``b``).
+    """
 
     Params = PiLineParams
     ports = {"a": Hydraulic("end a"), "b": Hydraulic("end b")}
@@ -122,7 +127,8 @@ def segmented_line(n: int, name: str = "line", **params) -> Circuit:
     if "l" not in params:
         from pvgraph.errors import ParameterError
         raise ParameterError("segmented_line: give the total length l [m]")
-    seg = dict(params, l=params["l"] / n)
+    from pvgraph.units import to_unit
+    seg = dict(params, l=to_unit(params["l"], "m", "l") / n)
     c = Circuit(name)
     parts = [c.add(f"s{k}", PiLine(**seg)) for k in range(n)]
     for left, right in zip(parts, parts[1:]):

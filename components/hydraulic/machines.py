@@ -62,7 +62,9 @@ __all__ = ["FixedDisplacementPump", "VariableDisplacementPump", "PressureCompens
 
 
 class MachineParams(Params):
-    D: float = Field(..., gt=0.0, le=1e-2, description="Displacement [m^3/rad] (V_g / 2 pi)")
+    D: float = Field(..., gt=0.0, le=1e-2,
+                     description="Displacement [m^3/rad] (V_g / 2 pi; per revolution give the "
+                                 "unit: '28 cm^3/rev')")
     eta_v: float = Field(0.95, gt=0.5, le=1.0,
                          description="Volumetric efficiency at the rated point [-]")
     eta_hm: float = Field(0.92, gt=0.5, le=1.0,
@@ -93,7 +95,13 @@ PUMP_PORTS = {"a": Hydraulic("suction"), "b": Hydraulic("delivery"),
 
 
 class FixedDisplacementPump(Component):
-    """Fixed-displacement pump driven by its shaft: ``q = D w - K dp``."""
+    """Fixed-displacement pump driven by its shaft: ``q = D w - K dp``.
+
+    ``K = (1 - eta_v) D w_nom / dp_nom``, shaft torque
+    ``T = D dp + (1/eta_hm - 1) D |dp| tanh(w / w_eps)``: at the rated point (``w_nom``,
+    ``dp_nom``) ``q = eta_v D w`` and ``T = D dp / eta_hm``; the leakage is proportional to
+    ``dp``. ``w = der(shaft.phi)``; drive it with a ``SpeedSource`` (``w0="1500 rpm"``).
+    """
 
     Params = MachineParams
     ports = PUMP_PORTS
@@ -153,7 +161,13 @@ class LoadSensingPump(Component):
 
 
 class HydraulicMotor(Component):
-    """Fixed-displacement motor: ``q = D w + K dp``, drives its shaft with ``T``."""
+    """Fixed-displacement motor: ``q = D w + K dp``, drives its shaft with ``T``.
+
+    ``K = (1/eta_v - 1) D w_nom / dp_nom``, ``T = D dp - (1 - eta_hm) D |dp| tanh(w / w_eps)``:
+    at the rated point ``w = eta_v q / D`` and ``T = eta_hm D dp``; elsewhere
+    ``w = (q - K dp) / D``. On an inertia with bearing friction ``b`` the steady state has
+    ``T = b w``.
+    """
 
     Params = MachineParams
     ports = {"A": Hydraulic("inlet"), "B": Hydraulic("outlet"),

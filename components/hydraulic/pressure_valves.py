@@ -111,7 +111,15 @@ def relief_opening(dp, p):
 
 
 class ReliefValve(Component):
-    """Direct-acting relief valve P -> T with a quasi-static spool (spring, area, flow gain)."""
+    """Direct-acting relief valve P -> T with a quasi-static spool (spring, area, flow gain).
+
+    Closed below ``dp = p_crack``; above it the opening is
+    ``x = A_s (dp - p_crack) / (k + 2 Cd w cos(theta) dp)``, limited to ``x_max``, and the flow
+    ``q = Cd (A_leak + w x) sqrt(2 dp / rho)``. Without flow force (``theta = pi/2``) it is fully
+    open at ``p_full = p_crack + k x_max / A_s``. The smoothing of the seat (width
+    ``1e-3 x_max``) takes ``5e-4 x_max`` off the opening. The steady pressure at a pump flow
+    ``Q`` is the root of ``q(dp) = Q``.
+    """
 
     Params = ReliefValveParams
     ports = {"P": Hydraulic("inlet (protected line)"), "T": Hydraulic("outlet to tank")}
@@ -209,7 +217,11 @@ class SettingParams(_RestrictionParams):
 
 
 class PressureReducingValve(Component):
-    """2-way pressure-reducing valve P -> A, normally open, closing as A.p reaches ``p_set``."""
+    """2-way pressure-reducing valve P -> A, normally open, closing as A.p reaches ``p_set``.
+
+    Area ``A_leak + A_max (1 - ramp(A.p; p_set - dp_open, dp_open))``: with the supply above
+    the setting the outlet holds between ``p_set - dp_open`` and ``p_set``.
+    """
 
     Params = SettingParams
     ports = {"P": Hydraulic("inlet (supply)"), "A": Hydraulic("reduced outlet")}
@@ -245,7 +257,12 @@ class CounterbalanceValveParams(SettingParams):
 
 
 class CounterbalanceValve(Component):
-    """Counterbalance (over-centre) valve: free flow to the load, pilot-assisted relief back."""
+    """Counterbalance (over-centre) valve: free flow to the load, pilot-assisted relief back.
+
+    Flow from load to valve is held until ``load.p + ratio * pilot.p`` reaches ``p_set``; while
+    holding, the relief path and the closed check each leak through ``A_leak``:
+    ``q = 2 Cd A_leak sqrt(2 (load.p - valve.p) / rho)``.
+    """
 
     Params = CounterbalanceValveParams
     ports = {"valve": Hydraulic("directional-valve side"),

@@ -30,9 +30,9 @@ __all__ = ["EndStop", "EndStopParams"]
 
 
 class EndStopParams(Params):
-    x_min: float = Field(..., ge=-1.0, le=1.0,
+    x_min: float = Field(..., ge=-1e3, le=1e3,
                          description="Lower stroke limit [m] (main spool: -7 mm, report 4.4.3)")
-    x_max: float = Field(..., ge=-1.0, le=1.0,
+    x_max: float = Field(..., ge=-1e3, le=1e3,
                          description="Upper stroke limit [m] (main spool: +7 mm, report 4.4.3)")
     k: float = Field(1e7, gt=0.0, le=1e12, description="Contact stiffness [N/m]")
     d: float = Field(2e3, ge=0.0, le=1e9, description="Contact damping [N s/m]")

@@ -66,7 +66,7 @@ class SpoolMass(Component):
 
 
 class FixedParams(Params):
-    x0: float = Field(0.0, ge=-1.0, le=1.0, description="Position held [m]")
+    x0: float = Field(0.0, ge=-1e3, le=1e3, description="Position held [m]")
 
 
 class Fixed(Component):

@@ -287,6 +287,13 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
         else:
             C[r] = coef * Zx[pos_z[idx]]
             D[r] = coef * Zu[pos_z[idx]]
+    # a shaft angle turning at the operating speed (a cyclic state of the steady state) that
+    # acts on nothing and is not asked for is a bare integrator: it is left out of the model
+    cyclic = set((op.info or {}).get("cyclic", ()))
+    keep = [r for r, k in enumerate(x) if not (system.names[k] in cyclic and
+                                               not A[:, r].any() and not C[:, r].any())]
+    if len(keep) < nx:
+        A, B, C, x = A[np.ix_(keep, keep)], B[keep], C[:, keep], x[keep]
     return LinearModel(A, B, C, D, [system.names[k] for k in x], list(inputs), list(outputs),
                        op)
 

@@ -5,6 +5,11 @@ Jacobian ``dF/dy`` of the compiled system. If Newton stalls, pseudo-transient co
 follows the circuit's own dynamics (implicit Euler steps of growing size ``dtau``, the Jacobian
 ``dF/dy + dF/dy'/dtau``) towards an equilibrium and Newton is tried again from there.
 
+Cyclic coordinates: an angle [rad] that enters the equations only through its derivative (a
+shaft turning at a steady speed, ``der(phi) = w``) has no steady value, only a steady rate. Such states are found from the Jacobian (a zero column of ``dF/dy`` with a non-zero
+column of ``dF/dy'``); for them the unknown is the rate ``y'`` and the value stays at its
+start, so a pump on a ``SpeedSource`` or a motor turning an inertia has an operating point.
+
 Scaling: variables by ``system.nominal``; residual rows by ``max_j |dF_i/dy_j| nominal_j`` at
 the start point (the size of the row's terms), so the tolerance is relative.
 """
@@ -23,7 +28,11 @@ __all__ = ["OperatingPoint", "steady_state"]
 
 @dataclass
 class OperatingPoint:
-    """A steady state of ``system``: ``y`` with ``yp = 0``; ``op["name"]`` looks up by name."""
+    """A steady state of ``system``: ``y`` with ``yp = 0``; ``op["name"]`` looks up by name.
+
+    ``info["cyclic"]`` names the states that only enter through their rate (shaft angles): for
+    them ``yp`` holds the steady rate and ``y`` the start value; sensitivities hold them fixed.
+    """
 
     y: np.ndarray
     yp: np.ndarray
@@ -58,6 +67,14 @@ class OperatingPoint:
     def solve_linear(self, rhs) -> np.ndarray:
         """Solve ``F_y X = rhs`` with the steady Jacobian ``F_y = dF/dy`` at this point."""
         s = self.system
+        if self.info.get("cyclic"):
+            # the rates of cyclic states stand in for their values, which stay put (dy = 0)
+            cyc = [s.names.index(nm) for nm in self.info["cyclic"]]
+            J = s.jacobian_dense(self.t, self.y, self.yp, 0.0)
+            J[:, cyc] = (s.jacobian_dense(self.t, self.y, self.yp, 1.0) - J)[:, cyc]
+            x = np.linalg.solve(J, rhs)
+            x[cyc] = 0.0
+            return x
         if s.n <= s.DENSE_MAX:
             J = s.jacobian_dense(self.t, self.y, self.yp, 0.0)
             return np.linalg.solve(J, rhs)
@@ -79,6 +96,56 @@ class OperatingPoint:
             gy, gp = s.output_gradient(name, self.t, self.y, self.yp, params)
             rows.append(gy @ S + gp)
         return np.array(rows).reshape(len(rows), S.shape[1])
+
+
+class _CyclicView:
+    """``system`` with the rates of its cyclic states as unknowns in place of their values."""
+
+    def __init__(self, system, cyc, y_start):
+        self._s, self.cyc = system, cyc
+        self.y_fix = np.asarray(y_start, dtype=float)[cyc].copy()
+        self.n, self.equations = system.n, system.equations
+        self.names = list(system.names)
+        for j in cyc:
+            self.names[j] = f"der({system.names[j]})"
+        self.nominal = np.asarray(system.nominal, dtype=float)
+
+    def split(self, z, zp=None):
+        """``(y, y')`` of the system for the unknowns ``z`` (rates of cyclic states held)."""
+        y = np.array(z, dtype=float)
+        yp = np.zeros(self.n) if zp is None else np.array(zp, dtype=float)
+        yp[self.cyc] = y[self.cyc]
+        y[self.cyc] = self.y_fix
+        return y, yp
+
+    def residual(self, t, z, zp):
+        y, yp = self.split(z, zp)
+        return self._s.residual(t, y, yp)
+
+    def jacobian_dense(self, t, z, zp, c):
+        y, yp = self.split(z, zp)
+        J0 = self._s.jacobian_dense(t, y, yp, 0.0)
+        Jyp = self._s.jacobian_dense(t, y, yp, 1.0) - J0
+        J = J0 + c * Jyp
+        J[:, self.cyc] = Jyp[:, self.cyc]
+        return J
+
+
+def _cyclic_states(system, t, y) -> np.ndarray:
+    """Angles [rad] entering F only through their derivative (at y and at a nearby point).
+
+    Only angles: a pressure or a position rising for ever is no operating point.
+    """
+    n = system.n
+    zero = np.zeros(n)
+    J0 = system.jacobian_dense(t, y, zero, 0.0)
+    Jyp = system.jacobian_dense(t, y, zero, 1.0) - J0
+    scale = np.where(system.nominal > 0, system.nominal, 1.0)
+    shift = 1e-3 * scale * np.cos(np.arange(n) + 0.5)
+    J1 = system.jacobian_dense(t, y + shift, zero, 0.0)
+    flat = np.all(J0 == 0.0, axis=0) & np.all(J1 == 0.0, axis=0)
+    angle = np.array([u == "rad" for u in system.units], dtype=bool)
+    return np.flatnonzero(flat & angle & np.any(Jyp != 0.0, axis=0))
 
 
 class _Scaled:
@@ -134,7 +201,9 @@ def _newton(sc, y, tol, max_iter, c=0.0, y_prev=None):
                 break
             lam *= 0.5
         else:
-            return y, fn, it, False
+            # no descent left: round-off. On a continuation step (c > 0) the terms c (y - y_prev)
+            # set a floor of about eps c |y|, above a tight tolerance; the step is good enough
+            return y, fn, it, c != 0.0 and fn <= 1e-6
         step = np.max(np.abs(lam * dy) / (np.abs(y) + sc.xs)) if n else 0.0
         y, fn = y_new, fn_new
         if step < 1e-14 and fn <= max(tol, 1e-6):  # round-off floor of the residual
@@ -213,7 +282,11 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
     y = np.array(system.y0 if y0 is None else y0, dtype=float)
     if system.n == 0:
         return OperatingPoint(y, np.zeros(0), system, t, 0.0, 0, "trivial")
-    sc = _Scaled(system, t, y)
+    cyc = _cyclic_states(system, t, y)
+    problem = _CyclicView(system, cyc, y) if len(cyc) else system
+    if len(cyc):
+        y[cyc] = 0.0                      # the unknowns there are the rates
+    sc = _Scaled(problem, t, y)
     y1, fn, its, ok = _newton(sc, y.copy(), tol, max_iter)
     method = "newton"
     total = its
@@ -223,10 +296,15 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
         total += steps + its
         method = "continuation"
     if not ok:
-        lines = _culprits(system, sc, y1)
+        lines = _culprits(problem, sc, y1)
         raise InitializationError(
             f"{system.name}: no steady state found (scaled residual {fn:.3g} > {tol:g} after "
             f"{total} iterations; Newton{' and continuation' if continuation else ''} failed). "
             f"Largest residuals:\n" + "\n".join(lines) +
             "\nCheck that every volume has an outlet and every mass a restoring force.")
-    return OperatingPoint(y1, np.zeros(system.n), system, t, fn, total, method)
+    yp1 = np.zeros(system.n)
+    info = {}
+    if len(cyc):
+        y1, yp1 = problem.split(y1)
+        info["cyclic"] = [system.names[j] for j in cyc]
+    return OperatingPoint(y1, yp1, system, t, fn, total, method, info)

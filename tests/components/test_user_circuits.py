@@ -1,0 +1,377 @@
+"""Machine-designer circuits built from the library as the README shows, against closed forms.
+
+Each circuit is written the way a user writes it (units as strings, ports joined as they are
+piped) and checked against the hand calculation of the part's documented law, with the
+documented smoothing taken into account where it matters.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from pvgraph import Circuit
+from pvgraph.analysis import linearize_circuit, steady_state
+from pvgraph.components import (CheckValve, CounterbalanceValve, Cylinder, DirectionalValve43,
+                                FixedDisplacementPump, FlowInput, FlowSource, GasAccumulator,
+                                HydraulicMotor, Inertia, Mass, Orifice, PiLine, PressureSource,
+                                PressureReducingValve, ReliefValve, SpeedSource, Step, Tank,
+                                TimeTable, VolumeNode)
+from pvgraph.components.hydraulic import segmented_line
+from pvgraph.simulate import simulate
+
+RHO, CD, BETA, P_ATM = 870.0, 0.6, 7e8, 101325.0
+LPM = 1.0 / 60000.0
+
+
+def turbulent(A, dp, dp_t):
+    """Report eq. A.4 as documented: q = Cd A sqrt(2/rho) dp / (dp^2 + dp_t^2)^(1/4)."""
+    return CD * A * math.sqrt(2.0 / RHO) * dp / (dp * dp + dp_t * dp_t) ** 0.25
+
+
+def drop(A, q, dp_t):
+    """The pressure drop that passes ``q`` through ``A`` by :func:`turbulent`."""
+    return brentq(lambda dp: turbulent(A, dp, dp_t) - q, 0.0, 1e9, xtol=1e-9, rtol=1e-14)
+
+
+# --- 1. fixed pump at 1500 rpm into a relief valve -------------------------------------------
+RELIEF = dict(p_crack="150 bar", A_s="20 mm^2", k="20 N/mm", x_max="2 mm", w="5 mm")
+
+
+def pump_relief(w0="1500 rpm"):
+    c = Circuit("relief")
+    motor = c.add("motor", SpeedSource(w0=w0))
+    pump = c.add("pump", FixedDisplacementPump(D="10 cm^3/rev"))
+    node = c.add("node", VolumeNode(V="0.5 L"))
+    rv = c.add("rv", ReliefValve(**RELIEF))
+    tank = c.add("tank", Tank())
+    c.connect(motor.shaft, pump.shaft)
+    c.connect(tank.port, pump.a, rv.T)
+    c.connect(pump.b, node.port, rv.P)
+    return c
+
+
+D_P = 10e-6 / (2 * math.pi)                             # 10 cm^3/rev
+K_P = (1 - 0.95) * D_P * 157.08 / 2e7                    # pump leakage, rated at 200 bar
+
+
+def relief_flow(dp, pc=150e5):
+    """The documented static relief law (inside the stroke, seat smoothing -eps/2)."""
+    A_s, k, x_max, wg = 20e-6, 2e4, 2e-3, 5e-3
+    kf = 2 * CD * wg * math.cos(math.radians(69.0))      # flow-force stiffness per Pa
+    x = A_s * (dp - pc) / (k + kf * dp) - 5e-4 * x_max
+    return turbulent(1e-11 + wg * x, dp, 1e4)
+
+
+def relief_closed_form():
+    """Steady pressure of the pump + relief circuit from the documented laws."""
+    w = 1500 * 2 * math.pi / 60
+    dp = brentq(lambda dp: relief_flow(dp) - (D_P * w - K_P * dp), 150e5 + 1e3, 170e5,
+                xtol=1e-6)
+    return dp, D_P * w - K_P * dp, D_P
+
+
+def test_pump_at_1500_rpm_into_relief_valve():
+    dp, Q, D = relief_closed_form()
+    assert 150e5 < dp < 170e5                            # between cracking and full stroke
+    system = pump_relief().compile()
+    op = steady_state(system)
+    assert op.info["cyclic"] == ["pump.shaft.phi"]
+    assert op["node.port.p"] == pytest.approx(dp, rel=1e-7)
+    assert op["rv.q"] == pytest.approx(Q, rel=1e-6)
+    assert op["pump.shaft.tau"] == pytest.approx(D * dp / 0.92, rel=1e-6)   # T = D dp / eta_hm
+    sol = simulate(system, t_end=0.5)
+    assert sol.final("node.port.p") == pytest.approx(dp, rel=1e-5)
+
+
+def test_relief_steady_state_sensitivity_to_the_setting():
+    """d p / d p_crack at the pump's operating point: 1 plus the slope of the leak, exactly."""
+    dp, Q, _ = relief_closed_form()
+    op = steady_state(pump_relief().compile())
+    sens = op.sensitivity(["node.port.p"], ["rv.p_crack"])[0, 0]
+    h = 1e3
+    RELIEF["p_crack"] = 150e5 + h
+    try:
+        dp2 = steady_state(pump_relief().compile())["node.port.p"]
+    finally:
+        RELIEF["p_crack"] = "150 bar"
+    assert sens == pytest.approx((dp2 - dp) / h, rel=1e-4)
+
+
+def test_pump_relief_linear_model_from_the_valve_slope():
+    """Node pole -(beta/V) (dq/dp + K), gain dp/dw = D / (dq/dp + K); the angle is left out."""
+    dp, _, _ = relief_closed_form()
+    slope = (relief_flow(dp + 10.0) - relief_flow(dp - 10.0)) / 20.0 + K_P
+    model = linearize_circuit(lambda u: pump_relief(u["w0"]), {"w0": 50 * math.pi},
+                              ["node.port.p"])
+    assert model.state_names == ["node.port.p"]
+    (pole,) = model.poles()
+    assert pole.real == pytest.approx(-(BETA / 0.5e-3) * slope, rel=1e-5)
+    gain = (model.C @ np.linalg.solve(-model.A, model.B) + model.D)[0, 0]
+    assert gain == pytest.approx(D_P / slope, rel=1e-5)
+
+
+# --- 2. pump -> 4/3 valve -> cylinder -> mass ---------------------------------------------------
+A_A, A_ROD, B_LOAD, Q_CYL = 1963.5e-6, 615.75e-6, 2e4, 10 * LPM
+
+
+def cylinder_circuit():
+    c = Circuit("cyl")
+    pump = c.add("pump", FlowSource(Q="10 L/min"))
+    tank = c.add("tank", Tank())
+    rv = c.add("rv", ReliefValve(p_crack="200 bar", A_s="20 mm^2", k="20 N/mm", x_max="2 mm",
+                                 w="5 mm"))
+    hose = c.add("hose", VolumeNode(V="0.2 L"))
+    valve = c.add("valve", DirectionalValve43(A_max="20 mm^2"))
+    cmd = c.add("cmd", Step(offset=1.0, height=-2.0, t_step=1.0))    # extend, then retract
+    cyl = c.add("cyl", Cylinder(A_A="1963.5 mm^2", A_rod="615.75 mm^2", stroke="0.5 m",
+                                V_dead_A="0.05 L", V_dead_B="0.05 L"))
+    load = c.add("load", Mass(m="200 kg", b=B_LOAD, x0=0.1))
+    c.connect(pump.port, hose.port, rv.P, valve.P)
+    c.connect(valve.T, rv.T, tank.port)
+    c.connect(cmd.y, valve.u)
+    c.connect(valve.A, cyl.A)
+    c.connect(valve.B, cyl.B)
+    c.connect(cyl.flange, load.flange)
+    return c
+
+
+def test_cylinder_extends_at_q_over_a_and_retracts_at_q_over_annulus():
+    sol = simulate(cylinder_circuit(), t_end=1.5)
+    A_B = A_A - A_ROD
+    v = sol.der("cyl.flange.x")
+    i_ext, i_ret = np.searchsorted(sol.t, 0.9), np.searchsorted(sol.t, 1.45)
+    assert v[i_ext] == pytest.approx(Q_CYL / A_A, rel=1e-4)
+    assert v[i_ret] == pytest.approx(-Q_CYL / A_B, rel=1e-4)
+    # extending: the rod side meters out through B -> T; p_A carries the load b v and p_B A_B
+    for i, q_in, q_out, A_in, A_out, F in (
+            (i_ext, Q_CYL, Q_CYL * A_B / A_A, A_A, A_B, B_LOAD * Q_CYL / A_A),
+            (i_ret, Q_CYL, Q_CYL * A_A / A_B, A_B, A_A, B_LOAD * Q_CYL / A_B)):
+        p_out = drop(20e-6, q_out, 1e4)
+        p_in = (F + p_out * A_out) / A_in
+        inlet, outlet = ("cyl.A.p", "cyl.B.p") if i == i_ext else ("cyl.B.p", "cyl.A.p")
+        assert sol[outlet][i] == pytest.approx(p_out, abs=2e3)        # 0.02 bar
+        assert sol[inlet][i] == pytest.approx(p_in, abs=2e3)
+        assert sol["valve.P.p"][i] == pytest.approx(p_in + drop(20e-6, q_in, 1e4), abs=2e3)
+
+
+# --- 3. hydraulic motor on an inertia with bearing friction ------------------------------------
+D_M = 10e-6 / (2 * math.pi)
+B_ROT = 0.92 * D_M * 2e7 / 157.08        # friction that puts the motor on its rated point
+
+
+def motor_circuit(Q):
+    c = Circuit("motor")
+    src = c.add("src", FlowSource(Q=Q))
+    node = c.add("node", VolumeNode(V="0.1 L"))
+    motor = c.add("motor", HydraulicMotor(D="10 cm^3/rev"))
+    load = c.add("load", Inertia(J="0.01 kg m^2", b=B_ROT))
+    tank = c.add("tank", Tank())
+    c.connect(src.port, node.port, motor.A)
+    c.connect(motor.B, tank.port)
+    c.connect(motor.shaft, load.shaft)
+    return c
+
+
+def test_motor_speed_and_torque_at_the_rated_point():
+    Q = D_M * 157.08 / 0.95
+    system = motor_circuit(Q).compile()
+    op = steady_state(system)
+    assert op["load.w"] == pytest.approx(0.95 * Q / D_M, rel=1e-8)       # w = eta_v Q / D
+    assert op["node.port.p"] == pytest.approx(2e7, rel=1e-7)             # T = eta_hm D dp = b w
+    sol = simulate(system, t_end=1.0)
+    assert sol.final("load.w") == pytest.approx(157.08, rel=1e-5)
+
+
+def test_motor_off_the_rated_point_follows_the_leakage_law():
+    Q = 8 * LPM
+    K = (1 / 0.95 - 1) * D_M * 157.08 / 2e7
+    w = Q / (D_M + K * B_ROT / (0.92 * D_M))     # q = D w + K dp with eta_hm D dp = b w
+    op = steady_state(motor_circuit(Q).compile())
+    assert op["load.w"] == pytest.approx(w, rel=1e-8)
+    assert op["node.port.p"] == pytest.approx(B_ROT * w / (0.92 * D_M), rel=1e-6)   # |dp| rounded by dp_eps
+
+
+# --- 4. gas accumulator charged through an orifice, then discharged ----------------------------
+def accumulator_circuit(n):
+    c = Circuit("acc")
+    flow = c.add("flow", TimeTable(t=[0.0, 1.0, 1.0001, 1.5], y=[1e-4, 1e-4, -1e-4, -1e-4]))
+    src = c.add("src", FlowInput())
+    node = c.add("node", VolumeNode(V="0.05 L", p0="50 bar"))
+    orifice = c.add("orifice", Orifice(A="5 mm^2"))
+    acc = c.add("acc", GasAccumulator(V0="1 L", p_pre="50 bar", n=n))
+    c.connect(flow.y, src.u)
+    c.connect(src.port, node.port, orifice.a)
+    c.connect(orifice.b, acc.port)
+    return c
+
+
+@pytest.mark.filterwarnings("ignore::pvgraph.errors.PlausibilityWarning")   # no tank: closed
+@pytest.mark.parametrize("n", [1.0, 1.4])
+def test_accumulator_follows_the_polytrope(n):
+    sol = simulate(accumulator_circuit(n), t_end=1.5, rtol=1e-8)
+    dp_b = 1e-3 * (50e5 + P_ATM)
+    for t, V_in in ((1.0, 1e-4), (1.5, 0.5e-4)):
+        i = np.searchsorted(sol.t, t - 1e-9)
+        V_oil = sol["acc.V_oil"][i]
+        assert V_oil == pytest.approx(V_in, rel=2e-3)     # the rest compresses the node's oil
+        p = (50e5 + P_ATM) * (1e-3 / (1e-3 - V_oil)) ** n - P_ATM
+        assert abs(sol["acc.port.p"][i] - p) < dp_b
+        assert sol["acc.p_gas"][i] == pytest.approx(p, rel=1e-9)
+
+
+# --- 5. pressure-reducing, check and counterbalance valves -------------------------------------
+def test_pressure_reducing_valve_holds_its_setting():
+    c = Circuit("prv")
+    supply = c.add("supply", PressureSource(p0="200 bar"))
+    prv = c.add("prv", PressureReducingValve(p_set="50 bar", A_max="10 mm^2"))
+    node = c.add("node", VolumeNode(V="0.1 L"))
+    load = c.add("load", Orifice(A="1 mm^2"))
+    tank = c.add("tank", Tank())
+    c.connect(supply.port, prv.P)
+    c.connect(prv.A, node.port, load.a)
+    c.connect(load.b, tank.port)
+    op = steady_state(c.compile())
+    dp_t_load = load.params.transition()
+
+    def balance(p):
+        s = min(max((p - 45e5) / 5e5, 0.0), 1.0)
+        A = 1e-11 + 10e-6 * (1 - s * s * (3 - 2 * s))
+        return turbulent(A, 200e5 - p, 1e4) - turbulent(1e-6, p, dp_t_load)
+
+    p = brentq(balance, 1e5, 199e5, xtol=1e-6)
+    assert 45e5 <= p <= 50e5
+    assert op["node.port.p"] == pytest.approx(p, rel=1e-9)
+
+
+def test_check_valve_blocks_reverse_flow_to_its_leakage():
+    c = Circuit("check")
+    high = c.add("high", PressureSource(p0="100 bar"))
+    check = c.add("check", CheckValve(A="5 mm^2", p_crack="1 bar"))
+    tank = c.add("tank", Tank())
+    c.connect(tank.port, check.a)
+    c.connect(check.b, high.port)
+    op = steady_state(c.compile())
+    assert op["check.q"] == pytest.approx(-turbulent(1e-12, 100e5, 1e3), rel=1e-9)
+
+
+def test_counterbalance_valve_holds_a_hanging_mass_to_its_leakage():
+    c = Circuit("boom")
+    tank = c.add("tank", Tank())
+    cbv = c.add("cbv", CounterbalanceValve(p_set="70 bar", A_max="20 mm^2", A_check="20 mm^2"))
+    p_load = 1000 * 9.81 / A_A
+    cyl = c.add("cyl", Cylinder(A_A=A_A, A_rod="615.75 mm^2", stroke="0.5 m", V_dead_A="0.05 L",
+                                V_dead_B="0.05 L", p0_A=p_load))
+    mass = c.add("mass", Mass(m="1000 kg", g=-9.81, x0=0.2))
+    c.connect(tank.port, cbv.valve, cbv.pilot, cyl.B)       # valve side open to tank: worst case
+    c.connect(cbv.load, cyl.A)
+    c.connect(cyl.flange, mass.flange)
+    sol = simulate(c, t_end=2.0)
+    late = sol.t > 0.5
+    creep = np.polyfit(sol.t[late], sol["cyl.flange.x"][late], 1)[0]
+    leak = 2 * turbulent(1e-11, p_load, 1e4)
+    assert sol.final("cyl.A.p") == pytest.approx(p_load, rel=1e-3)
+    assert creep == pytest.approx(-leak / A_A, rel=0.01)
+
+
+# --- 6. line friction --------------------------------------------------------------------------
+HP = 128 * RHO * 3.2e-5 * 5.0 * (5 * LPM) / (math.pi * 0.01 ** 4)   # 128 mu L Q / (pi d^4)
+
+
+def line_circuit(line):
+    c = Circuit("line")
+    src = c.add("src", FlowSource(Q="5 L/min"))
+    c.add("line", line)
+    tank = c.add("tank", Tank())
+    c.connect(src.port, c["line"].a)
+    c.connect(c["line"].b, tank.port)
+    return c
+
+
+@pytest.mark.parametrize("friction, rel", [("laminar", 1e-12), ("blended", 1e-5)])
+def test_pi_line_laminar_pressure_drop(friction, rel):
+    op = steady_state(line_circuit(PiLine(l="5 m", d="10 mm", friction=friction)).compile())
+    assert op["line.a.p"] == pytest.approx(HP, rel=rel)      # Re = 332: laminar
+
+
+def test_segmented_line_takes_units_and_has_the_same_drop():
+    line = segmented_line(4, l="5 m", d="10 mm", friction="laminar")
+    op = steady_state(line_circuit(line).compile())
+    assert op["line.a.p"] == pytest.approx(HP, rel=1e-12)
+
+
+# --- 7. linearisation of a volume and an orifice -----------------------------------------------
+def test_volume_orifice_pole():
+    def build(u):
+        c = Circuit("vo")
+        pump = c.add("pump", FlowSource(Q=u["Q"]))
+        node = c.add("node", VolumeNode(V="0.5 L"))
+        orifice = c.add("orifice", Orifice(A="2 mm^2"))
+        tank = c.add("tank", Tank())
+        c.connect(pump.port, node.port, orifice.a)
+        c.connect(orifice.b, tank.port)
+        return c
+
+    Q = 10 * LPM
+    model = linearize_circuit(build, {"Q": Q}, ["node.port.p"])
+    dp = drop(2e-6, Q, build({"Q": Q})["orifice"].params.transition())
+    (pole,) = model.poles()
+    assert pole.real == pytest.approx(-(BETA / 0.5e-3) * Q / (2 * dp), rel=1e-5)
+
+
+# --- machine-scale positions ---------------------------------------------------------------------
+def test_a_load_resting_on_a_stop_two_metres_up():
+    """Stops and grounds take machine-scale positions: a load rests m g / k into its stop."""
+    from pvgraph.components import EndStop, Fixed, TwoFlangeSpring
+    c = Circuit("stop")
+    body = c.add("body", Mass(m="100 kg", g=-9.81, x0=1.6))   # starts 0.1 m above it
+    stop = c.add("stop", EndStop(x_min=1.5, x_max=3.0, k=1e7, d=2e4))
+    c.connect(body.flange, stop.flange)
+    op = steady_state(c.compile())
+    # m g / k = 98.1 um into the stop; the rounding (eps = 0.1 um) moves it by 2.5e-11 m
+    assert op["body.flange.x"] == pytest.approx(1.5 - 100 * 9.81 / 1e7, abs=1e-10)
+    c = Circuit("hang")
+    top = c.add("top", Fixed(x0=2.5))
+    spring = c.add("spring", TwoFlangeSpring(k=1e4))
+    body = c.add("body", Mass(m="10 kg", g=-9.81, x0=2.5))
+    c.connect(body.flange, spring.a)
+    c.connect(spring.b, top.flange)
+    op = steady_state(c.compile())
+    assert op["body.flange.x"] == pytest.approx(2.5 - 10 * 9.81 / 1e4, abs=1e-12)
+
+
+def test_pressure_compensated_pump_holds_its_cut_off_band():
+    """eps = 1 - ramp(p; p_c - dp_reg, dp_reg) and q = eps D w - K dp, through an orifice."""
+    from pvgraph.components import PressureCompensatedPump
+    c = Circuit("pc")
+    motor = c.add("motor", SpeedSource(w0="1500 rpm"))
+    pump = c.add("pump", PressureCompensatedPump(D="28 cm^3/rev", p_c="200 bar"))
+    node = c.add("node", VolumeNode(V="1 L"))
+    load = c.add("load", Orifice(A="2 mm^2"))
+    tank = c.add("tank", Tank())
+    c.connect(motor.shaft, pump.shaft)
+    c.connect(tank.port, pump.a, load.b)
+    c.connect(pump.b, node.port, load.a)
+    op = steady_state(c.compile())
+    D, w = 28e-6 / (2 * math.pi), 50 * math.pi
+    K = 0.05 * D * 157.08 / 2e7
+    p, eps = op["node.port.p"], op["pump.eps"]
+    assert 195e5 < p < 200e5
+    s = (p - 195e5) / 5e5
+    assert eps == pytest.approx(1 - s * s * (3 - 2 * s), rel=1e-9)
+    assert eps * D * w - K * p == pytest.approx(turbulent(2e-6, p, load.params.transition()),
+                                                rel=1e-9)
+
+
+def test_machine_circuits_round_trip_through_a_model_file(tmp_path):
+    """Export to TOML and back: the same equations give the same operating point and run."""
+    from pvgraph import modelfile
+    dp, _, _ = relief_closed_form()
+    modelfile.save(pump_relief(), tmp_path / "relief.toml")
+    op = steady_state(modelfile.load(tmp_path / "relief.toml").compile())
+    assert op["node.port.p"] == pytest.approx(dp, rel=1e-7)
+    modelfile.save(cylinder_circuit(), tmp_path / "cyl.json")
+    sol = simulate(modelfile.load(tmp_path / "cyl.json"), t_end=1.5)
+    assert sol.der("cyl.flange.x")[np.searchsorted(sol.t, 1.45)] == \
+        pytest.approx(-Q_CYL / (A_A - A_ROD), rel=1e-4)
