@@ -561,13 +561,15 @@ def cmd_sweep(args) -> int:
     from .analysis.sweep import CompiledRun
     run = functools.partial(_noted_case, CompiledRun(
         functools.partial(_target_circuit, args.target, target.options),
-        outputs=dict(zip(outputs, resolved)), t_end=t_end, rtol=args.rtol))
+        outputs=dict(zip(outputs, resolved)), t_end=None if args.steady else t_end,
+        rtol=args.rtol, steady=args.steady, warm=args.steady))
     units = {n: system.unit(r) for n, r in zip(outputs, resolved)}
     result, backend = run_sweep(args, run, cases, units,
                                 functools.partial(_check_target_case, circuit))
     if result is None:
         return 130
-    print(f"{target.spec}: {len(result)} cases on {backend}, t_end {t_end:g} s, "
+    what = "steady states" if args.steady else f"t_end {t_end:g} s"
+    print(f"{target.spec}: {len(result)} cases on {backend}, {what}, "
           f"{result.wall_time:.1f} s wall\n")
     print(_format_table(result, units, args.si))
     print(f"\n{len(result.ok)} ok, {len(result.failed)} not ok; wrote {result.files[0]} and "
@@ -795,6 +797,9 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--var", action="append", help="output variable (repeatable)")
     w.add_argument("--t-end", type=float, default=None, help="simulated time per case [s]")
     w.add_argument("--rtol", type=float, default=1e-5)
+    w.add_argument("--steady", action="store_true",
+                   help="record each case's steady operating point instead of simulating "
+                        "to --t-end (each case starts from the last steady state found)")
     w.add_argument("--si", action="store_true", help="print SI units in the table")
     w.add_argument("--list-params", action="store_true",
                    help="list the parameter names with their values and exit")

@@ -354,6 +354,21 @@ def test_sweep_a_file_target_with_units(rig_file, tmp_path, capsys):
     assert "node.port.p [bar]" in capsys.readouterr().out
 
 
+def test_sweep_steady_states_of_a_file_target(rig_file, tmp_path, capsys):
+    """--steady records each case's operating point: the orifice law's pressure, tighter than
+    a simulation to a finite time can give."""
+    out = tmp_path / "steady"
+    assert main(["sweep", f"{rig_file}:build", "--param", "orifice.A=1 mm^2,2 mm^2,4 mm^2",
+                 "--var", "node.port.p", "--steady", "--backend", "serial",
+                 "--out", str(out)]) == 0
+    cases = _json(out / "sweep.json")["cases"]
+    for c in cases:
+        assert c["status"] == "ok"
+        assert c["outputs"]["node.port.p"] == pytest.approx(_p_steady(A=c["params"]["orifice.A"]),
+                                                            rel=1e-6)
+    assert "steady states" in capsys.readouterr().out
+
+
 def test_sweep_of_a_file_target_reuses_one_compiled_system(rig_file, tmp_path, capsys):
     """orifice.A and pump.Q are runtime parameters (no note); node.air is structural: its
     other value is compiled once, with a one-line note, and gives the same pressures."""
