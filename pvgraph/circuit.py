@@ -512,7 +512,9 @@ def _frozen(value):
     if isinstance(value, (tuple, list)):
         items = tuple(_frozen(x) for x in value)
         return None if any(x is None for x in items) else (type(value), items)
-    if value is None or isinstance(value, (bool, int, float, str)):
+    if isinstance(value, float):
+        return (float, repr(value))   # tells -0.0 from 0.0
+    if value is None or isinstance(value, (bool, int, str)):
         return (type(value), value)
     return None
 
