@@ -459,16 +459,22 @@ def _islands(circuit: Circuit) -> list[dict]:
     walk(circuit)
     refs, volumes = set(), set()
     seen: dict = {}   # (class, parameter values) -> the ports' roles, for instances alike
+    shared: dict = {}  # class -> [instances traced, instances that took another's roles]
     for path, comp in leaves:
         hyd = [n for n, pt in comp.ports.items() if pt.domain is HYDRAULIC]
         if not hyd:
             continue
-        key = _alike(comp)
+        count = shared.setdefault(type(comp), [0, 0])
+        # a class whose instances all differ so far is not keyed any more (keying costs)
+        key = _alike(comp) if count[1] or count[0] < _KEYED_UNSHARED else None
         roles = seen.get(key) if key is not None else None
         if roles is None:
             roles = _port_roles(comp, path, hyd)
+            count[0] += 1
             if key is not None:
                 seen[key] = roles
+        else:
+            count[1] += 1
         paths, fixing, vols = roles
         for flows in paths:
             for a, b in zip(flows, flows[1:]):
@@ -487,6 +493,7 @@ def _islands(circuit: Circuit) -> list[dict]:
     return [i for i in islands.values() if not i["ref"]]
 
 
+_KEYED_UNSHARED = 32
 _PLAIN_STATE = frozenset(("params", "_start", "_name", "_parent"))
 
 
