@@ -473,11 +473,12 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
                 name.endswith((".p", ".x")), -len(name))
 
     def substituted(expr, syms, ders):
-        """The equation with the eliminated unknowns replaced, and the values and
-        derivatives it reads. An unknown expressed in another maps its leaf onto that one's;
-        only one fixed to a value (or a vanishing coefficient) can fold other terms away,
-        and then the leaves are read again."""
+        """The equation with the eliminated unknowns replaced, the values and derivatives it
+        reads, and whether those are exact. An unknown expressed in another maps its leaf
+        onto that one's; one fixed to a value (or a vanishing coefficient) can fold other
+        terms away: the names are then a superset (read exactly where needed)."""
         expr = _apply(expr, subs, resolve)
+        exact = True
         out = []
         for group in (syms, ders):
             new = set()
@@ -485,14 +486,17 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
                 if nm in subs:
                     coef, target, _ = resolve(nm)
                     if target is None or _kzero(coef):
-                        lv = E.leaves(expr, ("sym", "der"))
-                        return (expr, {nm for op, nm in lv if op == "sym"},
-                                {nm for op, nm in lv if op == "der"})
-                    new.add(target)
+                        exact = False
+                    else:
+                        new.add(target)
                 else:
                     new.add(nm)
             out.append(new)
-        return expr, out[0], out[1]
+        return expr, out[0], out[1], exact
+
+    def read(expr):
+        lv = E.leaves(expr, ("sym", "der"))
+        return {nm for op, nm in lv if op == "sym"}, {nm for op, nm in lv if op == "der"}
 
     def plain(syms, ders):
         """False where :func:`_affine` cannot hold: a derivative or a mode is read."""
@@ -501,26 +505,31 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
     # Passes over the equations in order until nothing is eliminated. An equation none of whose
     # variables was eliminated since it was last looked at gives the same answer again, so it is
     # skipped: each pass costs the equations that changed, not the circuit. Each equation's
-    # values and derivatives read are kept exactly (for the incidence of the later stages).
+    # values and derivatives read are kept (exactly, or a superset read again where it
+    # matters) for the affine test and the incidence of the later stages.
     remaining = []
     for eq, leaves in zip(equations, found):
         syms = {nm for op, nm in leaves if op == "sym"}
         ders = {nm for op, nm in leaves if op == "der"}
-        remaining.append([eq, eq.expr, syms, ders, True])
+        remaining.append([eq, eq.expr, syms, ders, True, True])
     other = None
     changed = True
     while changed:
         changed = False
         keep = []
         for item in remaining:
-            eq, expr, syms, ders, fresh = item
+            eq, expr, syms, ders, fresh, exact = item
             if any(nm in subs for nm in syms) or any(nm in subs for nm in ders):
-                expr, syms, ders = substituted(expr, syms, ders)
-                item[1], item[2], item[3], fresh = expr, syms, ders, True
+                expr, syms, ders, still = substituted(expr, syms, ders)
+                exact = exact and still
+                item[1], item[2], item[3], item[5], fresh = expr, syms, ders, exact, True
             if not fresh:
                 keep.append(item)
                 continue
             item[4] = False
+            if not exact and not plain(syms, ders):   # a superset: the exact names decide
+                syms, ders = read(expr)
+                item[2], item[3], item[5] = syms, ders, True
             form = _affine(expr) if plain(syms, ders) else None
             if form is None:
                 keep.append(item)
@@ -571,12 +580,13 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
     for name in subs:
         subs[name] = resolve(name)
     out = []
-    for eq, expr, syms, ders, _ in remaining:
+    for eq, expr, syms, ders, _, exact in remaining:
         if any(nm in subs for nm in syms) or any(nm in subs for nm in ders):
-            expr, syms, ders = substituted(expr, syms, ders)
+            expr, syms, ders, still = substituted(expr, syms, ders)
+            exact = exact and still
         out.append(_Equation(expr, eq.origin, eq.label))
         if incidence is not None:
-            incidence.append((syms, ders))
+            incidence.append((syms, ders) if exact else read(expr))
     return out
 
 
