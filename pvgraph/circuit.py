@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import difflib
+import gc
 import re
 import warnings
 from collections import OrderedDict
@@ -431,7 +432,17 @@ def _pressure_islands(circuit: Circuit) -> list[dict]:
     pressure level when its component's equations use its pressure but never its flow (a
     Tank, a pressure source); a volume is a port whose pressure's time derivative appears.
     """
-    from . import expr as E
+    # the traced graphs are acyclic and freed by reference counting (as in the compiler)
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        return _islands(circuit)
+    finally:
+        if enabled:
+            gc.enable()
+
+
+def _islands(circuit: Circuit) -> list[dict]:
     from .component import HYDRAULIC
 
     leaves = _leaves(circuit)
@@ -465,36 +476,29 @@ def _pressure_islands(circuit: Circuit) -> list[dict]:
                 walk(child)
     walk(circuit)
     refs, volumes = set(), set()
+    seen: dict = {}   # (class, parameter values) -> the ports' roles, for instances alike
+    shared: dict = {}  # class -> [instances traced, instances that took another's roles]
     for path, comp in leaves:
         hyd = [n for n, pt in comp.ports.items() if pt.domain is HYDRAULIC]
         if not hyd:
             continue
-        try:
-            residuals, _ = comp.trace(path)
-        except Exception:           # the compiler reports a component that cannot trace
-            refs.update((path, n) for n in hyd)
-            continue
-        used = set()
-        # an internal flow (a line's q) carries flow between the ports whose equations hold it
-        carriers = [v for v, var in getattr(comp, "variables", {}).items()
-                    if var.unit == "m^3/s"]
-        held: dict[str, str] = {}
-        for r in residuals:
-            leaves_r = {f"{op}:{name}" for op, name in E.leaves(r, ("sym", "der"))}
-            used |= leaves_r
-            flows = [n for n in hyd if f"sym:{path}.{n}.q" in leaves_r]
+        count = shared.setdefault(type(comp), [0, 0])
+        # a class whose instances all differ so far is not keyed any more (keying costs)
+        key = _alike(comp) if count[1] or count[0] < _KEYED_UNSHARED else None
+        roles = seen.get(key) if key is not None else None
+        if roles is None:
+            roles = _port_roles(comp, path, hyd)
+            count[0] += 1
+            if key is not None:
+                seen[key] = roles
+        else:
+            count[1] += 1
+        paths, fixing, vols = roles
+        for flows in paths:
             for a, b in zip(flows, flows[1:]):
                 join((path, a), (path, b))
-            for v in carriers:
-                if flows and (f"sym:{path}.{v}" in leaves_r or f"der:{path}.{v}" in leaves_r):
-                    if v in held:
-                        join((path, held[v]), (path, flows[0]))
-                    held[v] = flows[0]
-        for n in hyd:
-            if f"sym:{path}.{n}.p" in used and f"sym:{path}.{n}.q" not in used:
-                refs.add((path, n))
-            if f"der:{path}.{n}.p" in used:
-                volumes.add((path, n))
+        refs.update((path, n) for n in fixing)
+        volumes.update((path, n) for n in vols)
     islands: dict[tuple, dict] = {}
     for node in parent:
         island = islands.setdefault(find(node), {"components": set(), "volumes": set(),
@@ -505,6 +509,67 @@ def _pressure_islands(circuit: Circuit) -> list[dict]:
         if node in refs:
             island["ref"] = True
     return [i for i in islands.values() if not i["ref"]]
+
+
+_KEYED_UNSHARED = 32
+_PLAIN_STATE = frozenset(("params", "_start", "_name", "_parent"))
+
+
+def _alike(comp):
+    """A key equal for instances whose equations trace alike: their class and parameter
+    values (None where that cannot be told: state of their own, values of other types)."""
+    if not _PLAIN_STATE.issuperset(vars(comp)):
+        return None
+    frozen = _frozen(comp.params)
+    return None if frozen is None else (type(comp), frozen)
+
+
+def _frozen(value):
+    from pydantic import BaseModel
+    if isinstance(value, BaseModel):
+        out = [type(value)]
+        for name in type(value).model_fields:
+            item = _frozen(getattr(value, name))
+            if item is None:
+                return None
+            out.append((name, item))
+        return tuple(out)
+    if isinstance(value, (tuple, list)):
+        items = tuple(_frozen(x) for x in value)
+        return None if any(x is None for x in items) else (type(value), items)
+    if isinstance(value, float):
+        return (float, repr(value))   # tells -0.0 from 0.0
+    if value is None or isinstance(value, (bool, int, str)):
+        return (type(value), value)
+    return None
+
+
+def _port_roles(comp, path, hyd):
+    """``(flow paths, reference ports, volume ports)`` of one component, by port name."""
+    from . import expr as E
+    try:
+        residuals, _ = comp.trace(path)
+    except Exception:           # the compiler reports a component that cannot trace
+        return [], list(hyd), []
+    used = set()
+    paths = []
+    # an internal flow (a line's q) carries flow between the ports whose equations hold it
+    carriers = [v for v, var in getattr(comp, "variables", {}).items() if var.unit == "m^3/s"]
+    held: dict[str, str] = {}
+    for r in residuals:
+        leaves_r = {f"{op}:{name}" for op, name in E.leaves(r, ("sym", "der"))}
+        used |= leaves_r
+        flows = [n for n in hyd if f"sym:{path}.{n}.q" in leaves_r]
+        if len(flows) > 1:
+            paths.append(flows)
+        for v in carriers:
+            if flows and (f"sym:{path}.{v}" in leaves_r or f"der:{path}.{v}" in leaves_r):
+                if v in held and held[v] != flows[0]:
+                    paths.append([held[v], flows[0]])
+                held[v] = flows[0]
+    fixing = [n for n in hyd if f"sym:{path}.{n}.p" in used and f"sym:{path}.{n}.q" not in used]
+    vols = [n for n in hyd if f"der:{path}.{n}.p" in used]
+    return paths, fixing, vols
 
 
 def _no_reference_message(circuit: Circuit, islands: list[dict]) -> str:

@@ -218,42 +218,66 @@ def row_shape(root: Expr, leaf_of=None):
     per instance) return None.
     """
     leaf_of = leaf_of or _compiled_leaf
-    num: dict[int, int] = {}
     # the shape is a flat token sequence: an operation followed by its children's positions,
-    # "const" and its value, a leaf kind and its slot (prefix-free, since arities are fixed)
+    # "const" and its value, a leaf kind and its slot (prefix-free, since arities are fixed).
+    # Nodes are numbered in the order of :func:`~pvgraph.expr.postorder` (depth first,
+    # children left to right, each once), walked here in the same loop that writes the tokens.
+    num: dict[int, int] = {}
     sig: list = []
     put = sig.append
     slots: dict[tuple, int] = {}
     leaves: dict[str, list] = {"y": [], "yp": [], "param": [], "mode": []}
-    for k, node in enumerate(postorder([root])):
-        num[id(node)] = k
-        args = node.args
-        if args:
-            op = node.op
-            if op == "interp" or op == "interp_d":
-                return None
-            put(op)
-            for a in args:
-                put(num[id(a)])
-            continue
+
+    def leaf(node):
         op = node.op
         if op == "const":
             v = node.value
             put("const")
             put(v if v != 0.0 else repr(v))
-        elif op == "time":
+            return True
+        if op == "time":
             put("time")
-        else:
-            key = leaf_of(node)
-            if key is None:
-                return None
-            s = slots.get(key)
-            if s is None:
-                group = leaves[key[0]]
-                s = slots[key] = len(group)
-                group.append(key[1])
-            put(key[0])
-            put(s)
+            return True
+        key = leaf_of(node)
+        if key is None:
+            return False
+        s = slots.get(key)
+        if s is None:
+            group = leaves[key[0]]
+            s = slots[key] = len(group)
+            group.append(key[1])
+        put(key[0])
+        put(s)
+        return True
+
+    if not root.args:
+        if not leaf(root):
+            return None
+    else:
+        seen = {id(root)}
+        add = seen.add
+        stack = [(root, iter(root.args))]
+        push, pop = stack.append, stack.pop
+        while stack:
+            node, children = stack[-1]
+            for a in children:
+                if id(a) not in seen:
+                    add(id(a))
+                    if a.args:
+                        push((a, iter(a.args)))
+                        break
+                    num[id(a)] = len(num)
+                    if not leaf(a):
+                        return None
+            else:
+                pop()
+                op = node.op
+                if op == "interp" or op == "interp_d":
+                    return None
+                num[id(node)] = len(num)
+                put(op)
+                for a in node.args:
+                    put(num[id(a)])
     # which derivative slots read the same unknown as a value slot (their Jacobian entries merge)
     pairs = tuple(slots.get(("y", v), -1) for v in leaves["yp"])
     return (tuple(sig), pairs), leaves

@@ -137,13 +137,17 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
         info.structural = trace.structural.get(name, "")
 
     subs: dict[str, tuple] = {}
+    incidence = None
     if eliminate_aliases:
-        equations = _eliminate_aliases(equations, infos, subs, trace.values, found)
+        incidence = []
+        equations = _eliminate_aliases(equations, infos, subs, trace.values, found, incidence)
     del found
 
     from .index_reduction import given_starts, reduce_index
     equations, events, observed, reduction = reduce_index(equations, infos, subs, events,
-                                                          observed, given_starts(leaves))
+                                                          observed, given_starts(leaves),
+                                                          incidence)
+    del incidence
     from .system import build_system
     system = build_system(circuit.name, equations, infos, subs, observed, events, mode_names,
                           mode_start, parameters=registry, tables=trace.tables,
@@ -436,21 +440,20 @@ def _kexpr(x):
     return x if isinstance(x, E.Expr) else E.const(x)
 
 
-def _eliminate_aliases(equations, infos, subs, values, found=None):
+def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=None):
     """Remove unknowns defined by affine one- and two-variable equations (in place on subs).
 
     The unknown removed must have a constant coefficient, so that no parameter value can make
     the elimination divide by zero; the other coefficient and the offset may be parametric.
     ``values`` holds the parameters' compile-time values (for carrying start values);
-    ``found`` the ``(op, name)`` leaves of each equation, if known.
+    ``found`` the ``(op, name)`` leaves of each equation, if known. ``incidence``, a list,
+    receives ``(values read, derivatives read)`` (sets of names) of each equation returned.
     """
     if found is None:
         found = [E.leaves(eq.expr, ("sym", "der")) for eq in equations]
     used_der: set[str] = set()
-    names_of = []   # the variables (values or derivatives) each equation reads
     for leaves in found:
         used_der.update(name for op, name in leaves if op == "der")
-        names_of.append({name for _, name in leaves})
 
     def num(x):
         return x if isinstance(x, float) else E.evaluate(x, values)
@@ -469,28 +472,65 @@ def _eliminate_aliases(equations, infos, subs, values, found=None):
         return (info.start_priority, name in used_der, name.count(".") == 2 and
                 name.endswith((".p", ".x")), -len(name))
 
+    def substituted(expr, syms, ders):
+        """The equation with the eliminated unknowns replaced, the values and derivatives it
+        reads, and whether those are exact. An unknown expressed in another maps its leaf
+        onto that one's; one fixed to a value (or a vanishing coefficient) can fold other
+        terms away: the names are then a superset (read exactly where needed)."""
+        expr = _apply(expr, subs, resolve)
+        exact = True
+        out = []
+        for group in (syms, ders):
+            new = set()
+            for nm in group:
+                if nm in subs:
+                    coef, target, _ = resolve(nm)
+                    if target is None or _kzero(coef):
+                        exact = False
+                    else:
+                        new.add(target)
+                else:
+                    new.add(nm)
+            out.append(new)
+        return expr, out[0], out[1], exact
+
+    def read(expr):
+        lv = E.leaves(expr, ("sym", "der"))
+        return {nm for op, nm in lv if op == "sym"}, {nm for op, nm in lv if op == "der"}
+
+    def plain(syms, ders):
+        """False where :func:`_affine` cannot hold: a derivative or a mode is read."""
+        return not ders and not any("#" in nm for nm in syms)
+
     # Passes over the equations in order until nothing is eliminated. An equation none of whose
     # variables was eliminated since it was last looked at gives the same answer again, so it is
-    # skipped: each pass costs the equations that changed, not the circuit.
-    remaining = [[eq, eq.expr, names_of[i], True] for i, eq in enumerate(equations)]
+    # skipped: each pass costs the equations that changed, not the circuit. Each equation's
+    # values and derivatives read are kept (exactly, or a superset read again where it
+    # matters) for the affine test and the incidence of the later stages.
+    remaining = []
+    for eq, leaves in zip(equations, found):
+        syms = {nm for op, nm in leaves if op == "sym"}
+        ders = {nm for op, nm in leaves if op == "der"}
+        remaining.append([eq, eq.expr, syms, ders, True, True])
     other = None
     changed = True
     while changed:
         changed = False
         keep = []
         for item in remaining:
-            eq, expr, names, fresh = item
-            if any(nm in subs for nm in names):
-                expr = _apply(expr, subs, resolve)
-                # the names it may read now (a superset where the substitution cancelled one)
-                names = {resolve(nm)[1] if nm in subs else nm for nm in names}
-                names.discard(None)
-                item[1], item[2], fresh = expr, names, True
+            eq, expr, syms, ders, fresh, exact = item
+            if any(nm in subs for nm in syms) or any(nm in subs for nm in ders):
+                expr, syms, ders, still = substituted(expr, syms, ders)
+                exact = exact and still
+                item[1], item[2], item[3], item[5], fresh = expr, syms, ders, exact, True
             if not fresh:
                 keep.append(item)
                 continue
-            item[3] = False
-            form = _affine(expr)
+            item[4] = False
+            if not exact and not plain(syms, ders):   # a superset: the exact names decide
+                syms, ders = read(expr)
+                item[2], item[3], item[5] = syms, ders, True
+            form = _affine(expr) if plain(syms, ders) else None
             if form is None:
                 keep.append(item)
                 continue
@@ -540,10 +580,13 @@ def _eliminate_aliases(equations, infos, subs, values, found=None):
     for name in subs:
         subs[name] = resolve(name)
     out = []
-    for eq, expr, names, _ in remaining:
-        if any(nm in subs for nm in names):
-            expr = _apply(expr, subs, resolve)
+    for eq, expr, syms, ders, _, exact in remaining:
+        if any(nm in subs for nm in syms) or any(nm in subs for nm in ders):
+            expr, syms, ders, still = substituted(expr, syms, ders)
+            exact = exact and still
         out.append(_Equation(expr, eq.origin, eq.label))
+        if incidence is not None:
+            incidence.append((syms, ders) if exact else read(expr))
     return out
 
 

@@ -252,7 +252,7 @@ def _times(k):
 
 # entry point --------------------------------------------------------------------------------------
 
-def reduce_index(equations, infos, subs, events, observed, given=None):
+def reduce_index(equations, infos, subs, events, observed, given=None, incidence=None):
     """Reduce the index of the compiled equations if needed.
 
     Parameters
@@ -268,6 +268,9 @@ def reduce_index(equations, infos, subs, events, observed, given=None):
     observed : dict name -> (expr, unit, description)
     given : dict, optional
         Start values given by the user (by full name), checked against the constraints.
+    incidence : list, optional
+        ``(values read, derivatives read)`` (sets of names) of each equation, if known (the
+        compiler's, from alias elimination); otherwise read from the expressions.
 
     Returns
     -------
@@ -279,10 +282,15 @@ def reduce_index(equations, infos, subs, events, observed, given=None):
         return equations, events, observed, IndexReduction()
     pos = {nm: i for i, nm in enumerate(unknowns)}
     inc_y, inc_yp = [], []
-    for eq in equations:
-        lv = E.leaves(eq.expr, ("sym", "der"))
-        inc_y.append({pos[v] for op, v in lv if op == "sym" and v in pos})
-        inc_yp.append({pos[v] for op, v in lv if op == "der" and v in pos})
+    if incidence is None:
+        incidence = []
+        for eq in equations:
+            lv = E.leaves(eq.expr, ("sym", "der"))
+            incidence.append(({v for op, v in lv if op == "sym"},
+                              {v for op, v in lv if op == "der"}))
+    for syms, ders in incidence:
+        inc_y.append({pos[v] for v in syms if v in pos})
+        inc_yp.append({pos[v] for v in ders if v in pos})
     differential = np.zeros(n, dtype=bool)
     for cols in inc_yp:
         differential[list(cols)] = True
