@@ -70,6 +70,10 @@ class _Equation:
     label: str       # human-readable description
 
 
+#: What closes an unconnected port of each domain.
+_CLOSURE = {"hydraulic": "a Plug (no flow) or a Tank", "mechanical": "a Fixed (no motion)",
+            "rotational": "a RotationalFixed (no rotation)"}
+
 def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True,
                     array_rows: bool | None = None):
     """Compile ``circuit`` to a :class:`~pvgraph.system.System`.
@@ -264,8 +268,8 @@ def _connection_equations(root, leaves, infos) -> list[_Equation]:
                 else ""
             raise CircuitError(
                 f"port {labels[0]!r} ({domain.name}) is not connected{via}. Connect it to "
-                f"another port, or close it explicitly (a Plug for a hydraulic port, a Fixed "
-                f"for a mechanical one).")
+                f"another port, or close it explicitly with "
+                f"{_CLOSURE.get(domain.name, 'a component that fixes it')}.")
         node_label = _node_label(labels)
         across = [E.Expr("sym", (), f"{lab}.{domain.across}") for lab in labels]
         through = [E.Expr("sym", (), f"{lab}.{domain.through}") for lab in labels]

@@ -579,6 +579,9 @@ def _unknown_port_message(owner, name, ports) -> str:
     import difflib
     close = difflib.get_close_matches(name, list(ports), n=1)
     hint = f" Did you mean {close[0]!r}?" if close else ""
+    params = getattr(owner, "params", None)
+    if params is not None and name in type(params).model_fields:
+        hint += f" {name!r} is a parameter: read it as .params.{name}."
     return (f"{type(owner).__name__} {getattr(owner, 'path', '')!r} has no port {name!r}; its "
             f"ports are {sorted(ports)}.{hint}")
 

@@ -717,7 +717,7 @@ class System:
         pool = list(self.parameters) + [
             f"{path}.{f}" for path, c in self._components.items()
             for f in type(c.params).model_fields]
-        close = difflib.get_close_matches(name, pool, n=3, cutoff=0.6)
+        close = difflib.get_close_matches(name, list(dict.fromkeys(pool)), n=3, cutoff=0.6)
         hint = f" Close matches: {close}." if close else ""
         raise ParameterError(f"{self.name}: no parameter named {name!r}.{hint} Parameters are "
                              f"named <component path>.<field>; system.parameter_names lists "

@@ -346,3 +346,21 @@ def test_a_load_starting_outside_the_cylinder_stroke_is_named():
     sol, found = run(0.499)                # runs into the stop at 1 L/min: within 1 mm, silent
     assert found == []
     assert 0.5 < sol.final("cyl.flange.x") < 0.5 + 1e-3
+
+
+def test_unconnected_shaft_and_a_parameter_read_as_a_port_are_named():
+    """A motor's free shaft is closed by a RotationalFixed, not a Plug; pump.D is a parameter."""
+    from pvgraph import Circuit
+    from pvgraph.components import FlowSource, HydraulicMotor, Tank
+    c = Circuit("t")
+    motor = c.add("motor", HydraulicMotor(D="10 cm^3/rev"))
+    src = c.add("src", FlowSource(Q="10 L/min"))
+    tank = c.add("tank", Tank())
+    c.connect(src.port, motor.A)
+    c.connect(motor.B, tank.port)
+    with pytest.raises(Exception, match=r"'motor.shaft' \(rotational\) is not connected.*"
+                                        r"RotationalFixed"):
+        c.compile()
+    with pytest.raises(AttributeError, match=r"no port 'D'.*'D' is a parameter: read it as "
+                                             r"\.params\.D"):
+        motor.D
