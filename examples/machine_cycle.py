@@ -19,7 +19,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from pvgraph.circuits.machine import CYCLE, SPEC, build_machine  # noqa: E402
+from pvgraph.circuits.machine import CYCLE, RTOL, SPEC, build_machine  # noqa: E402
 from pvgraph.plotting import plot_solution  # noqa: E402
 from pvgraph.simulate import simulate  # noqa: E402
 from pvgraph.units import to_bar  # noqa: E402
@@ -36,8 +36,8 @@ def _integral(sol, values):
     return float(np.trapezoid(values, sol.t))
 
 
-def run(rtol: float = 1e-4):
-    """Simulate the cycle; the Solution at 200 points per second."""
+def run(rtol: float = RTOL):
+    """Simulate the cycle; the Solution at 200 points per second (``RTOL``: see machine.py)."""
     return simulate(build_machine(), T_END, rtol=rtol,
                     t_eval=np.linspace(0.0, T_END, int(T_END * 200) + 1))
 

@@ -200,6 +200,7 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         # right after a failure keep the rig running (solve_dae's defaults, IDA's, do not)
         options.setdefault("suppress_alg", True)
         options.setdefault("no_growth_after_failure", True)
+        options.setdefault("newton_iterate_retry", True)
     kwargs = dict(rtol=rtol, atol=atol_vec, algebraic=system.algebraic,
                   jac=system.solver_jacobian(), jac_sparsity=system.jac_sparsity,
                   events=system.solver_events() or None, t_eval=t_eval, max_step=max_step,

@@ -58,7 +58,7 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
               jac_sparsity=None, events=None, t_eval=None, max_step=None, first_step=None,
               calc_initial="algebraic", max_order=5, max_steps=100_000, var_names=None,
               dense_output=False, suppress_alg=False, no_growth_after_failure=None,
-              nonnegative=None):
+              nonnegative=None, newton_iterate_retry=None):
     """Solve the implicit DAE F(t, y, y') = 0 of index at most one.
 
     Parameters
@@ -90,6 +90,10 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
     no_growth_after_failure : bool, optional
         Forbid a step increase right after a failed attempt (CVODE's rule); default
         ``ida.NO_GROWTH_AFTER_FAILURE`` (off, IDA's behaviour; see ``ida.py``).
+    newton_iterate_retry : bool, optional
+        After a fresh Jacobian at the predictor fails to contract, refresh it once at the last
+        Newton iterate before cutting the step; default ``ida.NEWTON_ITERATE_RETRY`` (off,
+        IDA's behaviour; ``simulate`` switches it on, see ``ida.py``).
     jac : callable, optional
         ``jac(t, y, yp, c) -> dF/dy + c dF/dy'`` as ndarray or scipy.sparse matrix. Finite
         differences when None.
@@ -191,7 +195,8 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
         return _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask,
                           algebraic is not None, bool(suppress_alg), jac, jac_sparsity, event_list, t_eval,
                           max_step, first_step, calc_initial, int(max_order), int(max_steps),
-                          var_names, dense_output, no_growth_after_failure, nonneg)
+                          var_names, dense_output, no_growth_after_failure, nonneg,
+                          newton_iterate_retry)
 
 
 def _nonnegative(nonnegative, n, y0, var_names):
@@ -213,7 +218,7 @@ def _nonnegative(nonnegative, n, y0, var_names):
 def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, suppress_alg, jac,
                jac_sparsity, event_list, t_eval, max_step, first_step, calc_initial,
                max_order, max_steps, var_names, dense_output, no_growth_after_failure=None,
-               nonnegative=None):
+               nonnegative=None, newton_iterate_retry=None):
     """The integration loop behind ``solve_dae`` (arguments already checked)."""
     n = y0.size
     r0 = residual(t0, y0, yp0)
@@ -245,7 +250,8 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     y, yp = initialise(t0, y0, yp0, calc_initial)
 
     integ = IDAIntegrator(fun, n, rtol, atol, error_mask, jacobian, lu, max_order, max_step,
-                          var_names, no_growth_after_failure, nonnegative)
+                          var_names, no_growth_after_failure, nonnegative,
+                          newton_iterate_retry)
     integ.reinit(t0, y, yp, t_end, first_step)
 
     ts, ys, yps = [], [], []

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from pvgraph.circuits.machine import CYCLE, SPEC, build_machine
+from pvgraph.circuits.machine import CYCLE, RTOL, SPEC, build_machine
 from pvgraph.simulate import simulate
 from pvgraph.units import bar, mm2
 
@@ -54,7 +54,7 @@ def test_counterbalance_valve_holds_the_boom_in_neutral(system):
 @pytest.fixture(scope="module")
 def cycle(system):
     t_end = CYCLE["t"][-1]
-    return simulate(system, t_end, rtol=1e-4, t_eval=np.linspace(0.0, t_end, int(200 * t_end) + 1))
+    return simulate(system, t_end, rtol=RTOL, t_eval=np.linspace(0.0, t_end, int(200 * t_end) + 1))
 
 
 def _window(sol, name, t0, t1):

@@ -165,18 +165,33 @@ def test_all_rig_scenarios_agree_on_both_backends():
 
 @pytest.mark.slow
 def test_cli_simulates_test_2_on_sundials_ida(capsys):
+    """The CLI's final load pressure, on both backends, in bar (default) and Pa (--si), is the
+    value simulate() gives in Python for the same circuit, to the 6 printed digits' rounding
+    and the backends' 0.5 % agreement."""
     pytest.importorskip("sksundae")
-    from pvgraph.cli import main
-
     import re
 
-    finals = {}
+    from pvgraph.cli import DEFAULT_T_END, load_target, main
+
+    target = load_target("test-2", {})
+    sol = simulate(target.circuit(), target.t_end or DEFAULT_T_END, rtol=1e-5)
+    p_final = sol.final("load.f.port.p")                  # [Pa]
+    assert p_final > bar(5.0)                             # the load is pressurised
+
+    def final(out, unit):
+        m = re.search(r"load\.f\.port\.p\s+final\s+(\S+) (\S+)", out)
+        assert m is not None, out
+        assert m.group(2) == unit, out
+        return float(m.group(1))
+
     for solver in ("ida", "pvgraph"):
         assert main(["simulate", "test-2", "--solver", solver]) == 0
         out = capsys.readouterr().out
-        finals[solver] = float(re.search(r"load\.f\.port\.p\s+final\s+(\S+) Pa", out).group(1))
         assert int(re.search(r"steps (\d+)", out).group(1)) > 10
-    assert finals["ida"] == pytest.approx(finals["pvgraph"], rel=5e-3)
+        rel = 1e-5 if solver == "pvgraph" else 5e-3
+        assert final(out, "bar") == pytest.approx(p_final / bar(1.0), rel=rel)
+        assert main(["simulate", "test-2", "--solver", solver, "--si"]) == 0
+        assert final(capsys.readouterr().out, "Pa") == pytest.approx(p_final, rel=rel)
 
 
 @pytest.mark.parametrize("solver", ["pvgraph", "ida"])
