@@ -463,7 +463,7 @@ def test_ctrl_c_during_a_sweep_keeps_what_is_done_and_resume_finishes(rig_file, 
     import time
     out = tmp_path / "study"
     args = [sys.executable, "-m", "pvgraph.cli", "sweep", f"{rig_file}:slow", "--param",
-            "slow.delay=0.4:0.5:8", "--var", "node.port.p", "--t-end", "0.2",
+            "slow.delay=1.0:1.2:8", "--var", "node.port.p", "--t-end", "0.2",
             "--backend", "process", "--workers", "2", "--out", str(out)]
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONPATH": os.getcwd()})
