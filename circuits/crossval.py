@@ -303,6 +303,23 @@ def _with_shape(p: PVG32Params, shape) -> PVG32Params:
         update={"opening_shape": tuple(shape)})})
 
 
+
+def _steady_or_raise(p, points, pool, sweep_updates) -> dict:
+    """The model's steady states at ``points``; a point without one stops the identification."""
+    steady = steady_values(p, points, pool, sweep_load=sweep_updates)
+    bad = [n for n, v in steady.items() if "error" in v]
+    if bad:
+        raise PvgraphError(f"identify: no steady state for {bad}: {steady[bad[0]]['error']}")
+    return steady
+
+
+def _shape_at_model_travel(p, U, Q, flow_pts, steady):
+    """A_H's shape refitted at the spool travel and drop the model settles at (section 8b)."""
+    x = np.array([abs(steady[s.name]["x_m"]) for s in flow_pts])
+    drop = np.array([max(steady[s.name]["drop"], bar(0.5)) for s in flow_pts])
+    _, shape = _fit_shape_and_supply(p, U, Q, x_fixed=x, drop=drop, fit_supply=False)
+    return shape
+
 def identify(train: list[Scenario], base: PVG32Params | None = None, *,
              loads_from: list[Scenario] = (), pool=None,
              load_law: str = "shared", measurement: bool = True,
@@ -404,13 +421,8 @@ def identify(train: list[Scenario], base: PVG32Params | None = None, *,
         p = with_values(p, {"rig.pump_flow": report_initial().rig.pump_flow})
     # 3. one pass of the model's steady states at the training points
     pb_pts = [s for s in train if not _is_neutral(s)]
-    steady = steady_values(p, pb_pts, pool, sweep_load=sweep_updates)
-    bad = [n for n, v in steady.items() if "error" in v]
-    if bad:
-        raise PvgraphError(f"identify: no steady state for {bad}: {steady[bad[0]]['error']}")
-    x = np.array([abs(steady[s.name]["x_m"]) for s in flow_pts])
-    drop = np.array([max(steady[s.name]["drop"], bar(0.5)) for s in flow_pts])
-    _, shape = _fit_shape_and_supply(p, U, Q, x_fixed=x, drop=drop, fit_supply=False)
+    steady = _steady_or_raise(p, pb_pts, pool, sweep_updates)
+    shape = _shape_at_model_travel(p, U, Q, flow_pts, steady)
     pb_res = np.mean([steady[s.name]["Pb"] - s.measured.Pb for s in pb_pts])
     overlap = None
     if meter_out:
@@ -439,13 +451,8 @@ def identify(train: list[Scenario], base: PVG32Params | None = None, *,
     if overlap is not None:
         # the edges and P_T move the spool's flow force and the PVE's drain: A_H once more at
         # the travel and drop of the model with them
-        again = steady_values(p, flow_pts, pool, sweep_load=sweep_updates)
-        bad = [n for n, v in again.items() if "error" in v]
-        if bad:
-            raise PvgraphError(f"identify: no steady state for {bad}: {again[bad[0]]['error']}")
-        x = np.array([abs(again[s.name]["x_m"]) for s in flow_pts])
-        drop = np.array([max(again[s.name]["drop"], bar(0.5)) for s in flow_pts])
-        _, shape = _fit_shape_and_supply(p, U, Q, x_fixed=x, drop=drop, fit_supply=False)
+        again = _steady_or_raise(p, flow_pts, pool, sweep_updates)
+        shape = _shape_at_model_travel(p, U, Q, flow_pts, again)
         p = _with_shape(p, shape)
     fitted.update((s.name, "Q_total") for s in flow_pts + sat_pts)
     fitted.update((s.name, "Pb") for s in pb_pts)
