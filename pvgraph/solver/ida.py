@@ -63,6 +63,9 @@ RATE_MAX = 0.9              # Newton diverges above this contraction rate
 # error, at rtol 1e-9), the first correction overshoots and the second, the same size,
 # lands on the solution: the rate test reads that as divergence at every step size.
 NEWTON_ITERATE_RETRY = False      # IDA's behaviour by default; simulate() switches it on
+# Up to this many unknowns the history update is one np.add.accumulate (fewer calls); above
+# it, row by row (measured: 3.8 against 4.9 us at n = 50, 6.3 against 3.1 us at n = 200)
+ACCUMULATE_MAX_N = 64
 XRATE = 0.25
 CJ_RATIO_LOW = (1.0 - XRATE) / (1.0 + XRATE)    # 3/5: outside [3/5, 5/3] refactorise
 CJ_RATIO_HIGH = 1.0 / CJ_RATIO_LOW
@@ -226,6 +229,7 @@ class IDAIntegrator:
         self.iterate_retry = (NEWTON_ITERATE_RETRY if newton_iterate_retry is None
                               else bool(newton_iterate_retry))
         self.inv_n = 1.0 / n
+        self.n_small = n <= ACCUMULATE_MAX_N
         self.phi = np.zeros((max_order + 2, n))
         self.ee = np.zeros(n)
         self._ee_norm = -1.0        # ||ee|| in the weighted norm when Newton took it, else -1
@@ -589,13 +593,15 @@ class IDAIntegrator:
         if kused < maxord:
             phi[kused + 1] = ee
         phi[kused] += ee
-        if kused > 1:
+        if 1 < kused and self.n_small:
             # phi[j] += phi[j + 1] for j = kused - 1 .. 0 in one sequential pass (the same
-            # sums in the same order: IEEE addition is commutative)
+            # sums in the same order: IEEE addition is commutative); for small n only: the
+            # overlapping reversed view costs a copy and a strided pass, 25x the loop at n = 20 000
             rows = phi[kused::-1]
             np.add.accumulate(rows, axis=0, out=rows)
         else:
-            phi[0] += phi[1]
+            for j in range(kused - 1, -1, -1):
+                phi[j] += phi[j + 1]
         self._set_weights(phi[0])
 
     # ------------------------------------------------------------ dense output
