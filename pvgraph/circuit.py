@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import difflib
 import gc
+import os
 import re
 import warnings
 from collections import OrderedDict
@@ -290,8 +291,26 @@ class Circuit:
         an error when the compiler finds it singular, a :class:`PlausibilityWarning` when its
         volumes let it compile (the pressure level of two or more volumes then floats on their
         start values).
+
+        ``backend``: how the residual, Jacobian and events are evaluated: ``"python"`` (the
+        generated Python code), ``"c"`` (the same code compiled by the machine's C compiler,
+        cached; an error without a compiler) or ``"auto"`` (C where a compiler is found and the
+        system is small enough for straight-line code, below
+        :data:`pvgraph.system.ARRAY_MIN_ROWS` rows; bigger ones keep their rows evaluated as
+        arrays). The default is the environment variable ``PVGRAPH_BACKEND``, else
+        ``"python"``. See :meth:`pvgraph.system.System.use_backend`.
         """
         from .compiler import compile_circuit
+        backend = options.pop("backend", None) or os.environ.get("PVGRAPH_BACKEND") or "python"
+        if backend not in ("python", "c", "auto"):
+            raise ValueError(f"compile(backend={backend!r}): choose 'python', 'c' or 'auto' "
+                             f"(also the values of PVGRAPH_BACKEND)")
+        if backend == "c" and options.get("array_rows") is None:
+            options["array_rows"] = False      # C evaluates every row as straight-line code
+        system = self._compile(compile_circuit, options)
+        return system.use_backend(backend) if system.backend != backend else system
+
+    def _compile(self, compile_circuit, options):
         key = None
         if _REUSE["depth"]:
             key, system = _reused(self, options)

@@ -744,6 +744,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="pvgraph", description="Acausal hydraulic circuit modelling: simulate, inspect, "
                                     "sweep and linearise any circuit.")
+    parser.add_argument("--eval", choices=["python", "c", "auto"], default=None,
+                        help="how compiled circuits evaluate their equations: the generated "
+                             "Python code, the same code compiled by the machine's C compiler "
+                             "(cached; same numbers, faster), or C where a compiler is found "
+                             "(default: $PVGRAPH_BACKEND, else python). Goes before the command: "
+                             "pvgraph --eval c validate")
     sub = parser.add_subparsers(dest="command", required=True)
     parsers = {}
 
@@ -862,6 +868,8 @@ def main(argv=None) -> int:
         print(f"pvgraph: error: {exc}", file=sys.stderr)
         return 2
     args = parser.parse_args(argv)
+    if args.eval is not None:   # in the environment, so worker processes see it too
+        os.environ["PVGRAPH_BACKEND"] = args.eval
     try:
         with warnings.catch_warnings():
             if argv is None:    # the command's own process (a caller may record warnings)

@@ -23,7 +23,7 @@ import numpy as np
 
 from .expr import Expr, postorder
 
-__all__ = ["generate", "compile_function", "row_shape", "template"]
+__all__ = ["generate", "compile_function", "row_shape", "schedule", "template"]
 
 # A node that would nest deeper than this is stored in a temporary, to keep generated lines short
 # and well inside the parser's nesting limit.
@@ -54,33 +54,7 @@ def generate(name: str, roots: list[Expr], *, flavour: str = "scalar",
     references (to be bound as ``_tab0``, ``_tab1``, ... in its namespace).
     """
     funcs = {"scalar": _SCALAR_FUNCS, "array": _ARRAY_FUNCS, "rows": _ROWS_FUNCS}[flavour]
-    order = postorder(roots)
-
-    # structural keys: equal subtrees share one key, so they are computed once
-    key_of: dict[int, int] = {}
-    table: dict[tuple, int] = {}
-    rep: list[Expr] = []
-    for node in order:
-        if node.op == "const":
-            sig = ("const", node.value)
-        elif node.op in ("y", "yp", "mode", "time", "sym", "der", "cj", "param"):
-            sig = (node.op, node.value)
-        elif node.op in ("interp", "interp_d"):
-            sig = (node.op, id(node.value), key_of[id(node.args[0])])
-        else:
-            sig = (node.op,) + tuple(key_of[id(a)] for a in node.args)
-        k = table.get(sig)
-        if k is None:
-            k = table[sig] = len(rep)
-            rep.append(node)
-        key_of[id(node)] = k
-
-    uses = [0] * len(rep)
-    for k, node in enumerate(rep):
-        for a in node.args:
-            uses[key_of[id(a)]] += 1
-    for r in roots:
-        uses[key_of[id(r)]] += 1
+    rep, key_of, uses = schedule(roots)
 
     tables: list = []
     table_names: dict[int, str] = {}
@@ -153,6 +127,41 @@ def generate(name: str, roots: list[Expr], *, flavour: str = "scalar",
     src.extend(out)
     src.append("    ]")
     return "\n".join(src) + "\n", tables
+
+
+def schedule(roots: list[Expr]):
+    """The distinct subexpressions of ``roots`` in evaluation order, found structurally.
+
+    Returns ``(rep, key_of, uses)``: one representative node per distinct subexpression,
+    children before parents; ``key_of[id(node)]`` the position of any node's representative;
+    ``uses[k]`` how often representative ``k`` is read (by other nodes and as a root). Equal
+    subtrees share one key, so generated code computes them once.
+    """
+    key_of: dict[int, int] = {}
+    table: dict[tuple, int] = {}
+    rep: list[Expr] = []
+    for node in postorder(roots):
+        if node.op == "const":
+            sig = ("const", node.value)
+        elif node.op in ("y", "yp", "mode", "time", "sym", "der", "cj", "param"):
+            sig = (node.op, node.value)
+        elif node.op in ("interp", "interp_d"):
+            sig = (node.op, id(node.value), key_of[id(node.args[0])])
+        else:
+            sig = (node.op,) + tuple(key_of[id(a)] for a in node.args)
+        k = table.get(sig)
+        if k is None:
+            k = table[sig] = len(rep)
+            rep.append(node)
+        key_of[id(node)] = k
+
+    uses = [0] * len(rep)
+    for node in rep:
+        for a in node.args:
+            uses[key_of[id(a)]] += 1
+    for r in roots:
+        uses[key_of[id(r)]] += 1
+    return rep, key_of, uses
 
 
 def _float(v: float) -> str:
