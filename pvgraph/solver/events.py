@@ -138,8 +138,8 @@ class EventTracker:
         ``interp(t) -> (y, yp)`` is the interpolant of the step.
         """
         g_old = self.g
-        zero = g_old == 0.0
-        if np.any(zero):
+        if not g_old.all():         # an event function exactly at zero: its sign from a probe
+            zero = g_old == 0.0
             t_probe = t_old + SIGN_PROBE * (t_new - t_old)
             y, yp = interp(t_probe)
             g_old = g_old.copy()
@@ -153,9 +153,9 @@ class EventTracker:
                     g_old[i] = float(self.events[i].fun(t_probe, y, yp))
         found = []
         g_new = np.asarray(g_new)
-        # only the events whose sign changed are looked at one by one
-        candidates = np.flatnonzero(((g_old < 0.0) & (g_new >= 0.0)) |
-                                    ((g_old > 0.0) & (g_new <= 0.0)))
+        # only the events whose sign changed are looked at one by one: a change makes the
+        # product <= 0 (NaN compares false on both tests); the exact test follows
+        candidates = (g_old * g_new <= 0.0).nonzero()[0]
         for i in candidates.tolist():
             ev = self.events[i]
             a, b = g_old[i], g_new[i]
