@@ -343,10 +343,13 @@ class System:
 
     def mode_view(self, owner: str) -> ModeView:
         """The modes of component ``owner`` as a mutable mapping."""
-        prefix = owner + ".#"
-        index = {nm[len(prefix):]: i for i, nm in enumerate(self.mode_names)
-                 if nm.startswith(prefix)}
-        return ModeView(self.modes, index, owner)
+        by_owner = self._lazy.get("modes_by_owner")
+        if by_owner is None:     # once per compiled system: a view per event is then O(1)
+            by_owner = self._lazy["modes_by_owner"] = {}
+            for i, nm in enumerate(self.mode_names):
+                path, _, mode = nm.rpartition(".#")
+                by_owner.setdefault(path, {})[mode] = i
+        return ModeView(self.modes, dict(by_owner.get(owner, {})), owner)
 
     def event_values(self, t, y, yp):
         """Every event function at one point."""
