@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .codegen import schedule
+from .codegen import schedule, straight_line
 from .expr import postorder
 from .errors import PvgraphError
 
@@ -49,9 +49,6 @@ __all__ = ["c_compiler", "CBackendError", "CModule", "build", "cache_dir"]
 #: no reassociation, IEEE semantics for NaN and infinity
 CFLAGS = ["-O1", "-fPIC", "-shared", "-std=c99", "-ffp-contract=off", "-fno-fast-math",
           "-fno-unsafe-math-optimizations", "-fno-finite-math-only"]
-
-# A node nested deeper than this goes into a temporary (keeps lines short for the compiler).
-_MAX_INLINE_DEPTH = 12
 
 _FUNCS = {"sqrt": "sqrt", "exp": "exp", "log": "log", "tanh": "tanh", "sin": "sin",
           "cos": "cos", "atan": "atan", "abs": "fabs"}
@@ -231,60 +228,28 @@ def emit(name: str, roots: list, tables: _Tables, *, jacobian: bool = False) -> 
 def _emit_one(name, roots, tables, jacobian, offset=None) -> str:
     """One C function writing ``roots`` to ``out`` (from ``offset`` on, as a chunk)."""
     rep, key_of, uses = schedule(roots)
-    text = [""] * len(rep)
-    depth = [0] * len(rep)
-    body: list[str] = []
-    ntemp = 0
-    for k, node in enumerate(rep):
+
+    def expression(node, a):
         op = node.op
-        if op == "const":
-            text[k] = _literal(node.value)
-            continue
-        if op in ("y", "yp"):
-            text[k] = f"{op}[{node.value}]"
-            continue
-        if op == "mode":
-            text[k] = f"d[{node.value}]"
-            continue
-        if op == "param":
-            text[k] = f"P[{node.value}]"
-            continue
-        if op == "time":
-            text[k] = "t"
-            continue
-        if op == "cj":
-            if not jacobian:
-                raise CBackendError("the Jacobian's c appears outside the Jacobian")
-            text[k] = "c"
-            continue
-        if op in ("sym", "der"):
-            raise CBackendError(f"unresolved symbol {node.value!r} reached code generation")
-        args = [key_of[id(a)] for a in node.args]
-        a = [text[i] for i in args]
         if op in _INFIX:
-            s = f"({a[0]} {_INFIX[op]} {a[1]})"
-        elif op == "pow":
-            s = f"pow({a[0]}, {a[1]})"
-        elif op == "neg":
-            s = f"(-{a[0]})"
-        elif op == "where":
-            s = f"({a[0]} ? {a[1]} : {a[2]})"
-        elif op in ("interp", "interp_d"):
+            return f"({a[0]} {_INFIX[op]} {a[1]})"
+        if op == "pow":
+            return f"pow({a[0]}, {a[1]})"
+        if op == "neg":
+            return f"(-{a[0]})"
+        if op == "where":
+            return f"({a[0]} ? {a[1]} : {a[2]})"
+        if op in ("interp", "interp_d"):
             fn = "pv_value" if op == "interp" else "pv_slope"
-            s = f"{fn}(T[{tables.ref(node.value)}], {a[0]})"
-        elif op in _FUNCS:
-            s = f"{_FUNCS[op]}({a[0]})"
-        else:
-            raise CBackendError(f"operation {op!r} has no C form")
-        depth[k] = 1 + max((depth[i] for i in args), default=0)
-        if uses[k] > 1 or depth[k] > _MAX_INLINE_DEPTH:
-            tmp = f"_{ntemp}"
-            ntemp += 1
-            body.append(f"    const double {tmp} = {s};")
-            text[k] = tmp
-            depth[k] = 0
-        else:
-            text[k] = s
+            return f"{fn}(T[{tables.ref(node.value)}], {a[0]})"
+        if op in _FUNCS:
+            return f"{_FUNCS[op]}({a[0]})"
+        raise CBackendError(f"operation {op!r} has no C form")
+
+    if not jacobian and any(node.op == "cj" for node in rep):
+        raise CBackendError("the Jacobian's c appears outside the Jacobian")
+    text, body = straight_line(rep, key_of, uses, _literal, expression,
+                               lambda tmp, s: f"    const double {tmp} = {s};")
     sig = _SIGNATURE + (", double c" if jacobian else "") + ", double *out"
     if offset is None:
         lines = [f"int {name}({sig})", "{"]
@@ -391,9 +356,8 @@ def _cached(digest: str, source: str, cc: str, name: str) -> Path:
         probe.touch()
         probe.unlink()
     except OSError:
-        folder = Path(tempfile.gettempdir()) / f"pvgraph-{os.getuid()}"
-        folder.mkdir(parents=True, exist_ok=True)
-    lib = folder / f"pv_{digest}.so"
+        folder = Path(tempfile.mkdtemp(prefix="pvgraph-c-"))   # a private folder instead
+    lib = folder / f"pv_{digest}{'.dll' if os.name == 'nt' else '.so'}"
     if lib.exists():
         return lib
     with tempfile.TemporaryDirectory(dir=folder) as tmp:

@@ -58,41 +58,18 @@ def generate(name: str, roots: list[Expr], *, flavour: str = "scalar",
 
     tables: list = []
     table_names: dict[int, str] = {}
-    text: list[str] = [""] * len(rep)
-    depth = [0] * len(rep)
-    body: list[str] = []
-    ntemp = 0
-    for k, node in enumerate(rep):
+
+    def expression(node, a):
         op = node.op
-        args = [key_of[id(a)] for a in node.args]
-        if op == "const":
-            text[k] = _float(node.value)
-            continue
-        if op in ("y", "yp", "mode"):
-            text[k] = f"{'d' if op == 'mode' else op}[{node.value}]"
-            continue
-        if op == "param":
-            text[k] = f"P[{node.value}]"
-            continue
-        if op == "time":
-            text[k] = "t"
-            continue
-        if op == "cj":
-            text[k] = "c"
-            continue
-        if op in ("sym", "der"):
-            raise ValueError(f"unresolved symbol {node.value!r} reached code generation")
-        a = [text[i] for i in args]
         if op in _INFIX:
-            s = f"({a[0]} {_INFIX[op]} {a[1]})"
-        elif op == "neg":
-            s = f"(-{a[0]})"
-        elif op == "where":
+            return f"({a[0]} {_INFIX[op]} {a[1]})"
+        if op == "neg":
+            return f"(-{a[0]})"
+        if op == "where":
             if flavour == "scalar":
-                s = f"({a[1]} if {a[0]} else {a[2]})"
-            else:
-                s = f"_np.where({a[0]}, {a[1]}, {a[2]})"
-        elif op in ("interp", "interp_d"):
+                return f"({a[1]} if {a[0]} else {a[2]})"
+            return f"_np.where({a[0]}, {a[1]}, {a[2]})"
+        if op in ("interp", "interp_d"):
             tab = node.value
             if tab.slot is not None:  # a runtime table: it lives in the parameter vector
                 table_names[id(tab)] = f"P[{tab.slot}]"
@@ -101,18 +78,12 @@ def generate(name: str, roots: list[Expr], *, flavour: str = "scalar",
                 tables.append(tab)
             method = {("interp", "scalar"): "value", ("interp_d", "scalar"): "slope",
                       ("interp", "array"): "values", ("interp_d", "array"): "slopes"}
-            s = f"{table_names[id(tab)]}.{method[(op, flavour)]}({a[0]})"
-        else:
-            s = f"{funcs[op]}({a[0]})"
-        depth[k] = 1 + max((depth[i] for i in args), default=0)
-        if uses[k] > 1 or depth[k] > MAX_INLINE_DEPTH:
-            tmp = f"_{ntemp}"
-            ntemp += 1
-            body.append(f"    {tmp} = {s}")
-            text[k] = tmp
-            depth[k] = 0
-        else:
-            text[k] = s
+            return f"{table_names[id(tab)]}.{method[(op, flavour)]}({a[0]})"
+        return f"{funcs[op]}({a[0]})"
+
+    tables: list = []
+    text, body = straight_line(rep, key_of, uses, _float, expression,
+                               lambda tmp, s: f"    {tmp} = {s}")
 
     out = []
     for i, r in enumerate(roots):
@@ -162,6 +133,60 @@ def schedule(roots: list[Expr]):
     for r in roots:
         uses[key_of[id(r)]] += 1
     return rep, key_of, uses
+
+
+def straight_line(rep, key_of, uses, literal, expression, assign,
+                  max_depth: int = MAX_INLINE_DEPTH):
+    """Texts of the nodes :func:`schedule` returned, and the lines computing the temporaries.
+
+    A node read more than once, or nested deeper than ``max_depth``, is computed once into a
+    temporary ``_0``, ``_1``, ... (``assign(name, text)`` writes that line); the others are
+    written inline. ``expression(node, arg_texts)`` writes an operation, ``literal(value)`` a
+    constant. Returns ``(text, body)``: per node the text that reads it, and the lines.
+    """
+    text = [""] * len(rep)
+    depth = [0] * len(rep)
+    body: list[str] = []
+    for k, node in enumerate(rep):
+        leaf = leaf_text(node, literal)
+        if leaf is not None:
+            text[k] = leaf
+            continue
+        args = [key_of[id(a)] for a in node.args]
+        s = expression(node, [text[i] for i in args])
+        depth[k] = 1 + max((depth[i] for i in args), default=0)
+        if uses[k] > 1 or depth[k] > max_depth:
+            tmp = f"_{len(body)}"
+            body.append(assign(tmp, s))
+            text[k] = tmp
+            depth[k] = 0
+        else:
+            text[k] = s
+    return text, body
+
+
+def leaf_text(node: Expr, literal) -> str | None:
+    """The text of a leaf in generated code (Python and C read them alike), or None.
+
+    ``literal(value)`` writes a constant. Arguments: ``t``, ``y``, ``yp``, modes ``d``,
+    parameters ``P`` and the Jacobian's ``c``.
+    """
+    op = node.op
+    if op == "const":
+        return literal(node.value)
+    if op in ("y", "yp"):
+        return f"{op}[{node.value}]"
+    if op == "mode":
+        return f"d[{node.value}]"
+    if op == "param":
+        return f"P[{node.value}]"
+    if op == "time":
+        return "t"
+    if op == "cj":
+        return "c"
+    if op in ("sym", "der"):
+        raise ValueError(f"unresolved symbol {node.value!r} reached code generation")
+    return None
 
 
 def _float(v: float) -> str:

@@ -153,11 +153,7 @@ class System:
     def residual(self, t, y, yp):
         """F(t, y, y') as an array; NaN where an equation cannot be evaluated."""
         if self._cmod is not None:
-            st = self._c_state()
-            st.y[:] = y
-            st.yp[:] = yp
-            if self.modes:
-                st.d[:len(self.modes)] = self.modes
+            st = self._c_at(y, yp)
             st.module.residual(t, *st.args, st.res_ptr)
             return st.res_out.copy()
         try:
@@ -170,11 +166,7 @@ class System:
     def jacobian_values(self, t, y, yp, c):
         """Values of dF/dy + c dF/dy' on the fixed pattern (CSC order)."""
         if self._cmod is not None:
-            st = self._c_state()
-            st.y[:] = y
-            st.yp[:] = yp
-            if self.modes:
-                st.d[:len(self.modes)] = self.modes
+            st = self._c_at(y, yp)
             st.module.jacobian(t, *st.args, c, st.jac_ptr)
             return st.jac_out.copy()
         try:
@@ -298,12 +290,17 @@ class System:
         self._cst = st
         return st
 
-    def _c_events(self, t, y, yp):
+    def _c_at(self, y, yp):
+        """This thread's C buffers holding y, y' and the modes."""
         st = self._c_state()
         st.y[:] = y
         st.yp[:] = yp
         if self.modes:
             st.d[:len(self.modes)] = self.modes
+        return st
+
+    def _c_events(self, t, y, yp):
+        st = self._c_at(y, yp)
         st.module.events(t, *st.args, st.ev_ptr)
         return st.ev_out[:len(self.event_specs)].copy()
 
