@@ -577,3 +577,22 @@ def test_the_command_prints_its_warnings_as_one_plain_line(tmp_path, monkeypatch
     assert "cli.py" not in captured.err and "PlausibilityWarning" not in captured.err
     p, unit = _final_values(captured.out)["v2.port.p"]
     assert unit == "bar" and p == pytest.approx(21.0, rel=1e-2)   # 42 bar shared by 2 L
+
+
+@pytest.mark.skipif(__import__("pvgraph.cbackend").cbackend.c_compiler() is None,
+                    reason="no C compiler")
+def test_eval_c_gives_the_python_codes_numbers(rig_file, tmp_path, monkeypatch, capsys):
+    monkeypatch.delenv("PVGRAPH_BACKEND", raising=False)     # restored after the test
+    monkeypatch.setenv("PVGRAPH_CACHE_DIR", str(tmp_path / "cache"))
+    args = ["simulate", f"{rig_file}:build", "--t-end", "1", "--var", "node.port.p", "--si"]
+    assert main(args) == 0
+    py = capsys.readouterr().out
+    assert main(["--eval", "c"] + args) == 0
+    c = capsys.readouterr().out
+    assert _final_values(c) == _final_values(py)     # printed alike: the same number
+    assert _final_values(c)["node.port.p"][0] == pytest.approx(_p_steady(), rel=2e-3)
+    assert list((tmp_path / "cache").glob("pv_*")), "the library is cached"
+    with pytest.raises(SystemExit) as exc:
+        main(["--eval", "fortran"] + args)
+    assert exc.value.code == 2
+    assert "invalid choice: 'fortran'" in capsys.readouterr().err
