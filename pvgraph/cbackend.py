@@ -359,6 +359,10 @@ def _cached(digest: str, source: str, cc: str, name: str) -> Path:
         folder = Path(tempfile.mkdtemp(prefix="pvgraph-c-"))   # a private folder instead
     lib = folder / f"pv_{digest}{'.dll' if os.name == 'nt' else '.so'}"
     if lib.exists():
+        try:
+            os.utime(lib)     # most recently used: kept by _trim
+        except OSError:
+            pass
         return lib
     with tempfile.TemporaryDirectory(dir=folder) as tmp:
         src = Path(tmp) / "system.c"
@@ -375,7 +379,22 @@ def _cached(digest: str, source: str, cc: str, name: str) -> Path:
             raise CBackendError(f"{name}: the C compiler {cc} failed on the generated code "
                                 f"(exit {proc.returncode}):\n{tail}")
         os.replace(out, lib)   # atomic: a concurrent build of the same source is harmless
+    _trim(folder)
     return lib
+
+
+#: the cache keeps this many libraries, the most recently used
+CACHE_MAX_FILES = 400
+
+
+def _trim(folder: Path) -> None:
+    """Remove the least recently used libraries beyond :data:`CACHE_MAX_FILES`."""
+    try:
+        libs = sorted(folder.glob("pv_*"), key=lambda f: f.stat().st_mtime)
+        for f in libs[:max(0, len(libs) - CACHE_MAX_FILES)]:
+            f.unlink()
+    except OSError:
+        pass      # another process trims too, or a file is in use: next time
 
 
 def try_build(res, jac, ev, *, name: str, required: bool):

@@ -214,3 +214,22 @@ def test_environment_variable_selects_the_backend(monkeypatch):
     ref = pump_volume_orifice(A=mm2(2.2)).compile(backend="python")
     assert np.array_equal(s.residual(0.0, ref.y0 + bar(3), ref.yp0),
                           ref.residual(0.0, ref.y0 + bar(3), ref.yp0))
+
+
+def test_the_cache_keeps_the_most_recently_used_libraries(monkeypatch, tmp_path):
+    import os
+    import time
+    monkeypatch.setenv("PVGRAPH_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(cbackend, "CACHE_MAX_FILES", 3)
+    paths = []
+    for k in range(3):
+        # another structure each time: a fixed number is a constant of the source
+        y0 = E.Expr("y", (), 0)
+        paths.append(cbackend.build([y0 * float(k + 7)], [], [], name=f"lib{k}").path)
+        os.utime(paths[-1], (time.time() - 100 + k, time.time() - 100 + k))
+    again = cbackend.build([E.Expr("y", (), 0) * 7.0], [], [], name="again")  # lib0 used again
+    assert again.path == paths[0]
+    cbackend.build([E.Expr("y", (), 0) * 99.0], [], [], name="new")   # a fourth: one goes
+    left = sorted(p.name for p in tmp_path.glob("pv_*"))
+    assert len(left) == 3
+    assert paths[0].name in left and paths[1].name not in left and paths[2].name in left
