@@ -15,9 +15,9 @@ from pvgraph import Circuit
 from pvgraph.analysis import linearize_circuit, steady_state
 from pvgraph.components import (CheckValve, CounterbalanceValve, Cylinder, DirectionalValve43,
                                 FixedDisplacementPump, FlowInput, FlowSource, GasAccumulator,
-                                HydraulicMotor, Inertia, Mass, Orifice, PiLine, PressureSource,
-                                PressureReducingValve, ReliefValve, SpeedSource, Step, Tank,
-                                TimeTable, VolumeNode)
+                                HydraulicMotor, Inertia, Mass, Orifice, PiLine, Plug,
+                                PressureSource, PressureReducingValve, ReliefValve, SpeedSource,
+                                Step, Tank, TimeTable, VolumeNode)
 from pvgraph.components.hydraulic import segmented_line
 from pvgraph.simulate import simulate
 
@@ -375,3 +375,53 @@ def test_machine_circuits_round_trip_through_a_model_file(tmp_path):
     sol = simulate(modelfile.load(tmp_path / "cyl.json"), t_end=1.5)
     assert sol.der("cyl.flange.x")[np.searchsorted(sol.t, 1.45)] == \
         pytest.approx(-Q_CYL / (A_A - A_ROD), rel=1e-4)
+
+
+# --- hydraulic spring: a mass on a cylinder with both ports blocked --------------------------
+def blocked_cylinder(v0=0.0):
+    """Cap side at 50 bar, rod side at the pressure that balances it, 500 kg on the rod."""
+    a_b = A_A - A_ROD
+    c = Circuit("hydraulic_spring")
+    cyl = c.add("cyl", Cylinder(A_A=A_A, A_rod=A_ROD, stroke="0.5 m", V_dead_A="0.05 L",
+                                V_dead_B="0.05 L", p0_A="50 bar", p0_B=50e5 * A_A / a_b))
+    mass = c.add("mass", Mass(m="500 kg", x0=0.2, v0=v0))
+    plug_a, plug_b = c.add("plug_a", Plug()), c.add("plug_b", Plug())
+    c.connect(cyl.A, plug_a.port)
+    c.connect(cyl.B, plug_b.port)
+    c.connect(cyl.flange, mass.flange)
+    return c, cyl
+
+
+def hydraulic_spring_frequency(cyl, x):
+    """omega = sqrt(beta (A_A^2 / V_A + A_B^2 / V_B) / m): both oil columns as springs."""
+    a_b = A_A - A_ROD
+    v_a, v_b = 0.05e-3 + A_A * x, 0.05e-3 + a_b * (0.5 - x)
+    return math.sqrt(cyl.params.beta * (A_A ** 2 / v_a + a_b ** 2 / v_b) / 500.0)
+
+
+def test_blocked_cylinder_rings_at_the_hydraulic_spring_frequency():
+    from pvgraph.analysis.linearize import linearize
+    c, cyl = blocked_cylinder()
+    system = c.compile()
+    op = steady_state(system)
+    assert op["mass.flange.x"] == pytest.approx(0.2, abs=1e-12)     # balanced as built
+    w = hydraulic_spring_frequency(cyl, 0.2)
+    eig = np.linalg.eigvals(linearize(system, op, None, ["mass.flange.x"]).A)
+    ringing = eig[np.abs(eig.imag) > 1.0]
+    assert len(ringing) == 2
+    assert np.abs(ringing.imag) == pytest.approx([w, w], rel=1e-9)
+    assert np.abs(ringing.real).max() < 1e-9 * w          # no damping in the model: none
+
+
+def test_blocked_cylinder_oscillates_with_the_period_and_amplitude_of_the_spring():
+    # a 1 mm/s push: amplitude v0 / omega (~7.5 um), far inside the linear range
+    c, cyl = blocked_cylinder(v0=1e-3)
+    w = hydraulic_spring_frequency(cyl, 0.2)
+    period = 2 * math.pi / w
+    sol = simulate(c, t_end=10 * period, rtol=1e-9, atol=1e-12,
+                   t_eval=np.linspace(0.0, 10 * period, 4001))
+    x = sol["mass.flange.x"] - 0.2
+    up = np.flatnonzero((x[:-1] < 0.0) & (x[1:] >= 0.0))      # upward zero crossings
+    t_up = sol.t[up] - x[up] * (sol.t[up + 1] - sol.t[up]) / (x[up + 1] - x[up])
+    assert np.diff(t_up) == pytest.approx(period, rel=1e-4)
+    assert np.abs(x).max() == pytest.approx(1e-3 / w, rel=1e-3)
