@@ -12,7 +12,8 @@ import numpy as np
 
 from pvgraph.errors import InitializationError, SolverError
 from pvgraph.solver.events import EventTracker, normalize_events
-from pvgraph.solver.ida import SOLVER_NAME, UROUND, IDAIntegrator, initial_step
+from pvgraph.solver.cstep import make_integrator
+from pvgraph.solver.ida import SOLVER_NAME, UROUND, initial_step
 from pvgraph.solver.initial import start_values
 from pvgraph.solver.linalg import JacobianEvaluator, LUSolver
 from pvgraph.solver.result import DAEResult, DenseOutput, EventRecord
@@ -58,7 +59,7 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
               jac_sparsity=None, events=None, t_eval=None, max_step=None, first_step=None,
               calc_initial="algebraic", max_order=5, max_steps=100_000, var_names=None,
               dense_output=False, suppress_alg=False, no_growth_after_failure=None,
-              nonnegative=None, newton_iterate_retry=None):
+              nonnegative=None, newton_iterate_retry=None, c_step=None):
     """Solve the implicit DAE F(t, y, y') = 0 of index at most one.
 
     Parameters
@@ -94,6 +95,12 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
         After a fresh Jacobian at the predictor fails to contract, refresh it once at the last
         Newton iterate before cutting the step; default ``ida.NEWTON_ITERATE_RETRY`` (off,
         IDA's behaviour; ``simulate`` switches it on, see ``ida.py``).
+    c_step : bool, optional
+        Take the steps in C (:mod:`pvgraph.solver.cstep`: the same numbers as the Python
+        step, bit for bit). None (default): where it applies -- the residual is a C-route
+        ``System.residual`` of 2 to ``System.DENSE_MAX`` unknowns with a dense iteration
+        matrix and no ``nonnegative`` variables -- and a C compiler is found; False: always
+        the Python step; True: the C step, ValueError where it does not apply.
     jac : callable, optional
         ``jac(t, y, yp, c) -> dF/dy + c dF/dy'`` as ndarray or scipy.sparse matrix. Finite
         differences when None.
@@ -196,7 +203,7 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
                           algebraic is not None, bool(suppress_alg), jac, jac_sparsity, event_list, t_eval,
                           max_step, first_step, calc_initial, int(max_order), int(max_steps),
                           var_names, dense_output, no_growth_after_failure, nonneg,
-                          newton_iterate_retry)
+                          newton_iterate_retry, c_step)
 
 
 def _nonnegative(nonnegative, n, y0, var_names):
@@ -218,7 +225,7 @@ def _nonnegative(nonnegative, n, y0, var_names):
 def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, suppress_alg, jac,
                jac_sparsity, event_list, t_eval, max_step, first_step, calc_initial,
                max_order, max_steps, var_names, dense_output, no_growth_after_failure=None,
-               nonnegative=None, newton_iterate_retry=None):
+               nonnegative=None, newton_iterate_retry=None, c_step=None):
     """The integration loop behind ``solve_dae`` (arguments already checked)."""
     n = y0.size
     r0 = residual(t0, y0, yp0)
@@ -249,9 +256,9 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
 
     y, yp = initialise(t0, y0, yp0, calc_initial)
 
-    integ = IDAIntegrator(fun, n, rtol, atol, error_mask, jacobian, lu, max_order, max_step,
-                          var_names, no_growth_after_failure, nonnegative,
-                          newton_iterate_retry)
+    integ = make_integrator(c_step, fun, n, rtol, atol, error_mask, jacobian, lu, max_order,
+                            max_step, var_names, no_growth_after_failure, nonnegative,
+                            newton_iterate_retry)
     integ.reinit(t0, y, yp, t_end, first_step)
 
     ts, ys, yps = [], [], []

@@ -1,0 +1,397 @@
+"""The BDF step in C for systems whose residual is compiled C (``cstep.c``).
+
+With the residual, Jacobian and events compiled to C (:mod:`pvgraph.cbackend`), most of a
+run's time is the solver's own Python: a step of :class:`~pvgraph.solver.ida.IDAIntegrator`
+makes about 25 numpy calls. :class:`CStepIntegrator` performs ``step()`` -- prediction,
+Newton iteration, error test, failures with their step and order reductions, order and step
+selection, history update and error weights -- in one C call that evaluates the compiled
+residual directly. The iteration matrix is still evaluated and factorised by the Python code
+(``_setup``, called back from C), and errors are raised by the Python code, with the same
+messages.
+
+The numbers are the Python step's, bit for bit: every operation is the one numpy performs, in
+the same order, and the library routines are the very ones numpy and scipy call (numpy's BLAS
+``ddot``, ``daxpy`` and ``dgemv``, scipy's LAPACK ``dgetrs``; see ``cstep.c``). On loading,
+the kernel's BLAS calls are checked against numpy on random data; any mismatch, a missing
+compiler or a missing routine leaves the Python step in use.
+
+It applies when the residual is a C-route :meth:`System.residual <pvgraph.system.System>`
+of at least 2 unknowns and no variable is declared non-negative. Dense iteration matrices
+(up to ``System.DENSE_MAX`` unknowns) are solved in C with the LU factors; sparse ones
+(SuperLU) are solved by the Python code, called back once per Newton iteration. ``solve_dae(..., c_step=False)`` (and ``simulate``) keeps
+the Python step; ``c_step=True`` requires the C step.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import threading
+from pathlib import Path
+
+import numpy as np
+
+from pvgraph.errors import SolverError
+from pvgraph.solver.ida import (HARMONIC, JACOBIAN_FAIL, MAX_ORDER, SETUP_FAIL, SOLVER_NAME,
+                                IDAIntegrator, _nonfinite_entries)
+
+__all__ = ["CStepIntegrator", "kernel", "c_system_of"]
+
+STEP_OK, STEP_HMIN, STEP_ERR_FAILS, STEP_CONV_FAILS, STEP_PYERR = range(5)
+FAIL_BY_PYTHON = -1
+
+_i64, _dbl, _vp = ctypes.c_int64, ctypes.c_double, ctypes.c_void_p
+
+
+class _State(ctypes.Structure):
+    """The kernel's state (``pv_state`` in cstep.c)."""
+
+    _fields_ = (
+        [(k, _i64) for k in ("n", "maxord", "has_mask", "no_growth", "iterate_retry", "blas64")]
+        + [(k, _dbl) for k in ("rtol", "hmax_inv", "inv_n")]
+        + [(k, _vp) for k in ("phi", "ewt", "ewt_err", "mask", "atol", "harmonic", "yy", "yp",
+                              "ee", "eew", "r", "delta", "dw", "work", "failvec", "sq", "res",
+                              "d", "P", "T", "ddot", "dgemv", "daxpy", "dgetrs", "setup",
+                              "solve", "lu", "piv")]
+        + [(k, _dbl) for k in ("t_bound", "tn", "hh", "hused", "cj", "cjlast", "cjold", "ck",
+                               "ss", "t_old", "ee_norm")]
+        + [("psi", _dbl * 8)]
+        + [(k, _dbl * 8) for k in ("c_psi", "c_sigma", "c_beta", "c_gamma")]
+        + [(k, _dbl) for k in ("c_cj", "c_ck")]
+        + [(k, _i64) for k in ("has_coeffs", "kk", "kused", "phase", "ns", "nst_restart",
+                               "force_setup", "nst", "nre", "nni", "netf", "ncfn", "nsetups",
+                               "fail_kind", "fail_serial")]
+        + [(k, _dbl) for k in ("err_t", "err_h")]
+        + [(k, _i64) for k in ("err_count", "err_status")])
+
+
+_SETUP = ctypes.CFUNCTYPE(ctypes.c_int, _dbl, _dbl, _dbl)
+_SOLVE = ctypes.CFUNCTYPE(ctypes.c_int)
+
+
+class _Kernel:
+    """The compiled step and the BLAS / LAPACK routines it calls."""
+
+    def __init__(self, step, ddot, dgemv, daxpy, dgetrs, blas64):
+        self.step = step
+        self.ddot, self.dgemv, self.daxpy, self.dgetrs = ddot, dgemv, daxpy, dgetrs
+        self.blas64 = blas64
+
+
+_lock = threading.Lock()
+_kernel = None
+_kernel_error = None
+
+
+def kernel():
+    """The loaded step kernel, or None (no compiler, no BLAS routines, a failed self-check)."""
+    global _kernel, _kernel_error
+    if _kernel is not None or _kernel_error is not None:
+        return _kernel
+    with _lock:
+        if _kernel is None and _kernel_error is None:
+            try:
+                _kernel = _load()
+            except Exception as exc:       # no compiler, no symbols: the Python step runs
+                _kernel_error = f"{type(exc).__name__}: {exc}"
+    return _kernel
+
+
+def kernel_error():
+    """Why the kernel could not be loaded (None if it was, or was not tried)."""
+    kernel()
+    return _kernel_error
+
+
+def _numpy_blas():
+    """(ddot, dgemv, daxpy, 64-bit integers) of the BLAS numpy's dot calls."""
+    from numpy._core import _multiarray_umath
+    lib = ctypes.CDLL(_multiarray_umath.__file__)
+    for prefix, suffix, wide in (("scipy_cblas_", "64_", True), ("cblas_", "64_", True),
+                                 ("scipy_cblas_", "", False), ("cblas_", "", False)):
+        try:
+            fns = [ctypes.cast(getattr(lib, f"{prefix}{name}{suffix}"), _vp).value
+                   for name in ("ddot", "dgemv", "daxpy")]
+        except AttributeError:
+            continue
+        return (*fns, wide)
+    raise OSError("numpy's CBLAS routines (cblas_ddot, cblas_dgemv, cblas_daxpy) not found")
+
+
+def _scipy_dgetrs():
+    """Address of the dgetrs scipy.linalg's getrs calls (scipy.linalg.cython_lapack)."""
+    from scipy.linalg import cython_lapack
+    cap = cython_lapack.__pyx_capi__["dgetrs"]
+    get_name = ctypes.pythonapi.PyCapsule_GetName
+    get_name.restype = ctypes.c_char_p
+    get_name.argtypes = [ctypes.py_object]
+    get_ptr = ctypes.pythonapi.PyCapsule_GetPointer
+    get_ptr.restype = _vp
+    get_ptr.argtypes = [ctypes.py_object, ctypes.c_char_p]
+    return get_ptr(cap, get_name(cap))
+
+
+def _load():
+    from pvgraph import cbackend
+    cc = cbackend.c_compiler()
+    if cc is None:
+        raise cbackend.CBackendError("no C compiler")
+    source = (Path(__file__).with_name("cstep.c")).read_text()
+    digest = hashlib.sha256("\0".join([source, cc] + cbackend.CFLAGS).encode()).hexdigest()[:24]
+    path = cbackend._cached(digest, source, cc, "the BDF step kernel")
+    lib = ctypes.CDLL(str(path))
+    step = lib.pv_step
+    step.argtypes = [ctypes.POINTER(_State)]
+    step.restype = ctypes.c_int
+    k = _Kernel(step, *_numpy_blas()[:3], _scipy_dgetrs(), _numpy_blas()[3])
+    _self_check(k)
+    return k
+
+
+def _self_check(k):
+    """The BLAS calls of the kernel give numpy's numbers on random data (else: not used)."""
+    itype = _i64 if k.blas64 else ctypes.c_int
+    ddot = ctypes.CFUNCTYPE(_dbl, itype, _vp, itype, _vp, itype)(k.ddot)
+    gemv = ctypes.CFUNCTYPE(None, ctypes.c_int, ctypes.c_int, itype, itype, _dbl, _vp, itype,
+                            _vp, itype, _dbl, _vp, itype)(k.dgemv)
+    axpy = ctypes.CFUNCTYPE(None, itype, _dbl, _vp, itype, _vp, itype)(k.daxpy)
+    rng = np.random.default_rng(7)
+    for n in (2, 7, 33, 91, 120):
+        v = rng.standard_normal(n) * 10.0 ** rng.integers(-6, 6, n)
+        if 0.0 + ddot(n, v.ctypes.data, 1, v.ctypes.data, 1) != np.dot(v, v):
+            raise ValueError("the kernel's ddot differs from numpy's dot")
+        for kk in range(1, MAX_ORDER + 1):
+            phi = rng.standard_normal((kk, n))
+            g = rng.standard_normal(kk)
+            out = np.zeros(n)
+            if kk == 1:
+                axpy(n, g[0], phi.ctypes.data, 1, out.ctypes.data, 1)
+            else:
+                gemv(101, 112, kk, n, 1.0, phi.ctypes.data, n, g.ctypes.data, 1, 0.0,
+                     out.ctypes.data, 1)
+            if not np.array_equal(out, np.dot(g, phi)):
+                raise ValueError("the kernel's gemv/axpy differs from numpy's dot")
+
+
+def c_system_of(fun):
+    """The System whose C-route residual ``fun`` is (a bound ``System.residual``), or None."""
+    owner = getattr(fun, "__self__", None)
+    if owner is None or getattr(owner, "_cmod", None) is None:
+        return None
+    from pvgraph.system import System
+    if not isinstance(owner, System) or getattr(fun, "__func__", None) is not System.residual:
+        return None
+    return owner
+
+
+def _field(name):
+    def get(self):
+        return getattr(self._s, name)
+
+    def put(self, value):
+        setattr(self._s, name, value)
+    return property(get, put)
+
+
+class CStepIntegrator(IDAIntegrator):
+    """:class:`IDAIntegrator` whose ``step()`` runs in C (same arguments plus the system).
+
+    The scalar state lives in the kernel's structure (the attributes below read and write
+    it), the history ``phi``, the weights and ``ee`` in arrays shared with the kernel; ``yy``
+    and ``yp`` are fresh arrays after every step, as with the Python step.
+    """
+
+    for _name in ("tn", "t_bound", "hh", "hused", "cj", "cjlast", "cjold", "ck", "ss", "t_old",
+                  "kk", "kused", "phase", "ns", "nst_restart", "nst", "nre", "nni", "netf",
+                  "ncfn", "nsetups"):
+        locals()[_name] = _field(_name)
+    del _name
+    _ee_norm = _field("ee_norm")
+
+    @property
+    def force_setup(self):
+        return bool(self._s.force_setup)
+
+    @force_setup.setter
+    def force_setup(self, value):
+        self._s.force_setup = bool(value)
+
+    @property
+    def psi(self):
+        return self._s.psi[:MAX_ORDER + 2]
+
+    @psi.setter
+    def psi(self, value):
+        self._s.psi[:MAX_ORDER + 2] = [float(v) for v in value]
+
+    @property
+    def _coeffs(self):
+        return None
+
+    @_coeffs.setter
+    def _coeffs(self, value):
+        if value is None:
+            self._s.has_coeffs = 0
+        else:
+            raise ValueError("the C step computes its own coefficients")
+
+    def __init__(self, kern, system, fun, n, rtol, atol, error_mask, jacobian, lu, max_order,
+                 max_step, var_names, no_growth_after_failure, newton_iterate_retry):
+        self._s = s = _State()
+        self._kernel = kern
+        self._system = system
+        super().__init__(fun, n, rtol, atol, error_mask, jacobian, lu, max_order, max_step,
+                         var_names, no_growth_after_failure, None, newton_iterate_retry)
+        self._ewt = np.ones(n)
+        self._ewt_err = np.ones(n) if error_mask is not None else self._ewt
+        self._mask = (np.ascontiguousarray(error_mask, dtype=float) if error_mask is not None
+                      else np.ones(n))
+        self._atol = np.ascontiguousarray(atol, dtype=float)
+        self._harmonic = np.array(HARMONIC + [0.0] * (8 - len(HARMONIC)), dtype=float)
+        self._yy = np.zeros(n)
+        self._yp = np.zeros(n)
+        self._eew = np.zeros(n)
+        self._r = np.zeros(n)
+        self._delta = np.zeros(n)
+        self._dw = np.zeros(n)
+        self._work = np.zeros(2 * n)
+        self._failvec = np.zeros(n)
+        self._sq = np.zeros(n)
+        self._lu_keep = None
+        self._piv1 = None
+        self._exc = None
+        s.n, s.maxord = n, max_order
+        s.has_mask = error_mask is not None
+        s.no_growth, s.iterate_retry = self.no_growth, self.iterate_retry
+        s.blas64 = kern.blas64
+        s.rtol, s.hmax_inv, s.inv_n = float(rtol), float(self.hmax_inv), float(self.inv_n)
+        for name in ("phi", "ee"):
+            setattr(s, name, getattr(self, name).ctypes.data)
+        for name, arr in (("ewt", self._ewt), ("ewt_err", self._ewt_err), ("mask", self._mask),
+                          ("atol", self._atol), ("harmonic", self._harmonic), ("yy", self._yy),
+                          ("yp", self._yp), ("eew", self._eew), ("r", self._r),
+                          ("delta", self._delta), ("dw", self._dw), ("work", self._work),
+                          ("failvec", self._failvec), ("sq", self._sq)):
+            setattr(s, name, arr.ctypes.data)
+        s.res = ctypes.cast(system._cmod.residual, _vp).value
+        s.ddot, s.dgemv, s.daxpy, s.dgetrs = kern.ddot, kern.dgemv, kern.daxpy, kern.dgetrs
+        self._setup_cb = _SETUP(self._setup_from_c)
+        s.setup = ctypes.cast(self._setup_cb, _vp).value
+        self._solve_cb = _SOLVE(self._solve_from_c)
+        s.solve = ctypes.cast(self._solve_cb, _vp).value
+        s.fail_kind = FAIL_BY_PYTHON
+        self._cst = None
+        self._sref = ctypes.byref(s)
+
+    def _set_weights(self, y):
+        """As IDAIntegrator's, into the arrays the kernel shares."""
+        w = self._ewt
+        np.abs(y, out=w)
+        w *= self.rtol
+        w += self.atol
+        np.divide(1.0, w, out=w)
+        self.ewt = w
+        if self.error_mask is None:
+            self.ewt_err = w
+        else:
+            self.ewt_err = np.multiply(w, self.error_mask, out=self._ewt_err)
+
+    def _setup_from_c(self, tn, cj, hh):
+        """``_setup`` after its counters: evaluate and factorise J; 0, 1 (J not finite),
+        2 (singular), 3 (an exception, re-raised by ``step``)."""
+        try:
+            m = self.jacobian.iteration_matrix(tn, self._yy, self._yp, self._r, cj, self.ewt,
+                                               hh)
+            bad = _nonfinite_entries(m)
+            if bad is not None:
+                self._fail = (JACOBIAN_FAIL, bad)
+                return 1
+            info = self.lu.factor(m)
+            if info != 0:
+                self._fail = (SETUP_FAIL, info)
+                return 2
+            lu = self.lu._lu
+            if self.lu._splu is not None:
+                self._lu_keep = self._piv1 = None
+                self._s.lu = self._s.piv = None       # solved by _solve_from_c
+                return 0
+            if lu.dtype != np.float64 or not lu.flags.f_contiguous:
+                raise SolverError("the C step needs LAPACK's column-major LU factors")
+            self._lu_keep = lu
+            self._piv1 = np.add(self.lu._piv, 1, dtype=np.int32)
+            self._s.lu = lu.ctypes.data
+            self._s.piv = self._piv1.ctypes.data
+            return 0
+        except BaseException as exc:       # noqa: BLE001 - re-raised by step()
+            self._exc = exc
+            return 3
+
+    def _solve_from_c(self):
+        """The sparse (SuperLU) solve with the residual: 0, or 3 (an exception)."""
+        try:
+            self._delta[:] = self.lu.solve(self._r)
+            return 0
+        except BaseException as exc:       # noqa: BLE001 - re-raised by step()
+            self._exc = exc
+            return 3
+
+    def step(self):
+        """Take one successful step towards ``t_bound``; raise SolverError on failure."""
+        s = self._s
+        system = self._system
+        st = system._c_state()
+        if st is not self._cst:
+            self._cst = st
+            s.d, s.P = st.d.ctypes.data, st.P.ctypes.data
+            s.T = ctypes.addressof(st.T)
+        if system.modes:
+            st.d[:len(system.modes)] = system.modes
+        serial = s.fail_serial
+        code = self._kernel.step(self._sref)
+        if s.fail_serial != serial and s.fail_kind != FAIL_BY_PYTHON:
+            self._fail = (int(s.fail_kind), self._failvec.copy())
+        if code == STEP_OK:
+            self.yy = self._yy.copy()
+            self.yp = self._yp.copy()
+            return
+        if code == STEP_PYERR:
+            exc, self._exc = self._exc, None
+            raise exc
+        if code == STEP_HMIN:
+            self._raise("the step size fell below the minimum", s.err_t, s.err_h)
+        if code == STEP_ERR_FAILS:
+            self._raise(f"the local error test failed {s.err_count} times in one step",
+                        s.err_t, s.err_h, self._fail[1],
+                        "the weighted error estimate is dominated by")
+        if code == STEP_CONV_FAILS:
+            self._raise_newton(int(s.err_status), int(s.err_count), s.err_t, s.err_h)
+        raise SolverError(f"{SOLVER_NAME}: the C step returned {code}", t=s.tn, h=s.hh)
+
+
+def make_integrator(c_step, fun, n, rtol, atol, error_mask, jacobian, lu, max_order, max_step,
+                    var_names, no_growth_after_failure, nonnegative, newton_iterate_retry):
+    """A CStepIntegrator where it applies (and ``c_step`` is not False), else IDAIntegrator."""
+    why = None
+    system = c_system_of(fun)
+    kern = None
+    if c_step is False:
+        why = "c_step=False"
+    elif system is None:
+        why = "the residual is not a System's C-route residual"
+    elif n < 2:
+        why = "a single unknown"
+    elif nonnegative is not None:
+        why = "variables are declared non-negative"
+    else:
+        kern = kernel()
+        if kern is None:
+            why = f"the step kernel is not available ({kernel_error()})"
+    if kern is None:
+        if c_step:
+            raise ValueError(f"c_step=True but the C step does not apply: {why}")
+        return IDAIntegrator(fun, n, rtol, atol, error_mask, jacobian, lu, max_order, max_step,
+                             var_names, no_growth_after_failure, nonnegative,
+                             newton_iterate_retry)
+    return CStepIntegrator(kern, system, fun, n, rtol, atol, error_mask, jacobian, lu,
+                           max_order, max_step, var_names, no_growth_after_failure,
+                           newton_iterate_retry)
