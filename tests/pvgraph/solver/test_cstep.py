@@ -1,0 +1,214 @@
+"""The BDF step in C (pvgraph.solver.cstep) against the Python step, its oracle.
+
+Both steps must take the same steps and give the same numbers bit for bit: every comparison
+is ``np.array_equal`` / ``==`` on the solver statistics and outputs. Needs a C compiler
+(skipped without one).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+from pydantic import Field
+
+from pvgraph import Circuit, Component, Params, cbackend
+from pvgraph import expr as E
+from pvgraph.component import Variable, der
+from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
+from pvgraph.errors import SolverError
+from pvgraph.simulate import simulate
+from pvgraph.solver import cstep, solve_dae
+from pvgraph.units import bar, litre, lpm, mm2
+
+pytestmark = pytest.mark.skipif(cbackend.c_compiler() is None, reason="no C compiler")
+
+
+@pytest.fixture(autouse=True)
+def _cache(tmp_path_factory, monkeypatch):
+    monkeypatch.setenv("PVGRAPH_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "pv-c-cache"))
+
+
+@pytest.fixture
+def c_steps(monkeypatch):
+    """Counts the steps the C kernel takes."""
+    count = {"n": 0}
+    step = cstep.CStepIntegrator.step
+
+    def counted(self):
+        count["n"] += 1
+        return step(self)
+
+    monkeypatch.setattr(cstep.CStepIntegrator, "step", counted)
+    return count
+
+
+def both(run):
+    """(Python step, C step) results of ``run(c_step)``."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")      # the rig's cavitation notes
+        return run(False), run(None)
+
+
+def assert_identical(a, b):
+    assert a.stats == b.stats
+    assert np.array_equal(a.t, b.t)
+    assert np.array_equal(a.y, b.y)
+    assert np.array_equal(a.yp, b.yp)
+    assert [(e.t, e.name) for e in a.events] == [(e.t, e.name) for e in b.events]
+
+
+def test_the_kernel_loads_and_its_blas_is_numpys():
+    # the load runs the self-check: ddot / daxpy / dgemv give np.dot's numbers on random data
+    assert cstep.kernel() is not None, cstep.kernel_error()
+
+
+def test_pump_volume_orifice_step_input(c_steps):
+    # a 10 l/min pump switched on at t = 0 (from p = 0) into 0.5 l and a 2 mm^2 orifice:
+    # the pressure settles where the orifice passes the pump flow, Q = Cd A sqrt(2 dp / rho)
+    c = Circuit("pvo")
+    node = c.add("node", VolumeNode(V=litre(0.5)))
+    o = c.add("o", Orifice(A=mm2(2.0)))
+    c.connect(c.add("pump", FlowSource(Q=lpm(10))).port, node.port, o.a)
+    c.connect(o.b, c.add("tank", Tank()).port)
+    s = c.compile(backend="c")
+    a, b = both(lambda cs: simulate(s, 2.0, rtol=1e-7, c_step=cs))
+    assert_identical(a, b)
+    assert c_steps["n"] == b.stats["nsteps"] > 50
+    P = s.parameters
+    dp = b["o.dp"][-1]
+    assert b["o.q"][-1] == pytest.approx(lpm(10), rel=1e-5)
+    assert lpm(10) == pytest.approx(P["o.Cd"].value * mm2(2.0) * math.sqrt(
+        2 * dp / P["o.rho"].value), rel=3e-3)
+    # every internal step output, and the dense output between steps
+    a, b = both(lambda cs: solve_dae(s.residual, (0.0, 0.05), s.y0, s.yp0, rtol=1e-6,
+                                     jac=s.solver_jacobian(), jac_sparsity=s.jac_sparsity,
+                                     algebraic=s.algebraic, dense_output=True, c_step=cs))
+    assert_identical(a, b)
+    t = np.linspace(0.0, 0.05, 97)
+    assert np.array_equal(a.sol(t), b.sol(t))
+
+
+@pytest.fixture(scope="module")
+def rig():
+    from pvgraph.circuits.pvg32.parameters import report_tuned
+    from pvgraph.circuits.rig import build_rig, laminar_load
+    p = report_tuned()
+    return build_rig(p, load=laminar_load(p, L1="small", L3="small", t_switch=0.01),
+                     U_input=4.24).compile(backend="c")
+
+
+def test_rig_test_2_with_events_and_mode_changes(rig, c_steps):
+    # PVG 32 rig test 2 for 0.3 s (91 unknowns, dense iteration matrix): the load valve
+    # switches at 10 ms, chambers cavitate (mode changes), error-test failures occur
+    t_eval = np.linspace(0.0, 0.3, 31)
+    a, b = both(lambda cs: simulate(rig, 0.3, rtol=1e-6, t_eval=t_eval, c_step=cs))
+    assert_identical(a, b)
+    assert rig.n <= rig.DENSE_MAX and c_steps["n"] == b.stats["nsteps"]
+    assert b.stats["netf"] > 0 and b.stats["nroot"] > 0 and len(b.events) > 0
+    assert a._mode_log == b._mode_log and len(b._mode_log) > 2
+    # a different tolerance and every internal step as output
+    a, b = both(lambda cs: simulate(rig, 0.05, rtol=1e-4, c_step=cs))
+    assert_identical(a, b)
+
+
+def test_machine_cycle_window(c_steps):
+    # the machine (184 unknowns: sparse iteration matrix, SuperLU solves called back) over
+    # the first lift: the voltage ramps at 0.2 s and 0.3 s
+    from pvgraph.circuits.machine import RTOL, build_machine
+    s = build_machine().compile(backend="c")
+    assert s.n > s.DENSE_MAX
+    t_eval = np.linspace(0.0, 0.4, 81)
+    a, b = both(lambda cs: simulate(s, 0.4, rtol=RTOL, t_eval=t_eval, c_step=cs))
+    assert_identical(a, b)
+    assert c_steps["n"] == b.stats["nsteps"] > 100
+    assert b.stats["ncfn"] + b.stats["netf"] > 0
+
+
+class DrainParams(Params):
+    rate: float = Field(..., gt=0.0, description="Fall rate of the level [m/s]")
+
+
+class SqrtDrain(Component):
+    """A level falling at a constant rate and its square root: h' = -rate, s = sqrt(h).
+
+    Once h < 0 the square root cannot be evaluated (NaN in C).
+    """
+
+    Params = DrainParams
+    ports = {}
+    variables = {"h": Variable("m", lambda p: 1.0, 1.0, "level"),
+                 "s": Variable("m", lambda p: 1.0, 1.0, "square root of the level")}
+
+    def equations(self, v, p):
+        return [der(v.h) + p.rate, v.s * v.s - v.h * E.sqrt(v.h) / E.sqrt(v.h)]
+
+
+def test_a_residual_that_becomes_nan_fails_with_the_same_message(c_steps):
+    c = Circuit("drain")
+    c.add("d", SqrtDrain(rate=1.0))
+    s = c.compile(backend="c")
+    msgs = []
+    for cs in (False, None):
+        with pytest.raises(SolverError) as info:
+            simulate(s, 3.0, rtol=1e-6, c_step=cs)
+        msgs.append(str(info.value))
+    assert msgs[0] == msgs[1]
+    assert "the residual is not finite" in msgs[0] and "(rows of 'd.s')" in msgs[0]
+    assert "at t = 1 " in msgs[0]          # h = 1 - t reaches zero at t = 1
+    assert c_steps["n"] > 0
+
+
+STATE = ("tn", "t_old", "hh", "hused", "kk", "kused", "phase", "ns", "nst_restart", "cj",
+         "cjlast", "cjold", "ss", "force_setup", "_ee_norm", "nst", "nre", "nni", "netf", "ncfn",
+         "nsetups", "psi")
+ARRAYS = ("phi", "ee", "ewt", "ewt_err", "yy", "yp")
+
+
+def test_the_integrator_state_after_every_step(rig):
+    # the two integrators stepped side by side from the same start, with a restart (as after
+    # an event) half way: every attribute interpolate, reinit, events and outputs read
+    from pvgraph.simulate import simulate as sim
+    from pvgraph.solver.linalg import JacobianEvaluator, LUSolver
+    y0 = sim(rig, 1e-3, rtol=1e-6).y[-1]
+    yp0 = np.zeros(rig.n)
+    rig.reset_modes()
+    atol = 1e-6 * rig.nominal
+    integ = {}
+    for cs in (False, True):
+        jac = JacobianEvaluator(rig.residual, rig.n, rig.solver_jacobian(), rig.jac_sparsity,
+                                typical=atol / 1e-6)
+        integ[cs] = cstep.make_integrator(
+            cs, rig.residual, rig.n, 1e-6, atol, rig.differential.astype(float), jac,
+            LUSolver(), 5, None, rig.names, True, None, True)
+        integ[cs].reinit(0.0, y0, yp0, 0.2)
+    assert type(integ[True]) is cstep.CStepIntegrator and type(integ[False]) is not cstep.CStepIntegrator
+    for k in range(150):
+        if k == 75:
+            t = integ[False].tn
+            for it in integ.values():
+                y, yp = it.interpolate(t)
+                it.reinit(t, y, yp, 0.2)
+        for it in integ.values():
+            it.step()
+        a, b = integ[False], integ[True]
+        for name in STATE:
+            assert getattr(a, name) == getattr(b, name), (k, name)
+        for name in ARRAYS:
+            assert np.array_equal(getattr(a, name), getattr(b, name)), (k, name)
+        tm = 0.5 * (a.t_old + a.tn)
+        assert all(np.array_equal(u, v) for u, v in zip(a.interpolate(tm), b.interpolate(tm)))
+    assert a.netf > 0 and a.phase == 1
+
+
+def test_c_step_true_where_it_does_not_apply_is_refused():
+    def f(t, y, yp):
+        return yp + y
+
+    with pytest.raises(ValueError, match="C step does not apply"):
+        solve_dae(f, (0.0, 1.0), [1.0, 2.0], [-1.0, -2.0], c_step=True)
+    # and the Python step runs it without the option
+    r = solve_dae(f, (0.0, 1.0), [1.0, 2.0], [-1.0, -2.0], rtol=1e-8, atol=1e-10)
+    assert r.y[-1] == pytest.approx([math.exp(-1.0), 2 * math.exp(-1.0)], rel=1e-6)
