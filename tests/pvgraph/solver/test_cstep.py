@@ -127,6 +127,32 @@ def test_machine_cycle_window(c_steps):
     assert b.stats["ncfn"] + b.stats["netf"] > 0
 
 
+@pytest.mark.parametrize("case", ["rig, dense differences", "machine, detected pattern"])
+def test_difference_jacobians_and_step_options(rig, case, c_steps):
+    # the Jacobian by finite differences (the residual called back from the setup), a dense
+    # one for the rig and, for the machine, a pattern detected from dense differences and
+    # then SuperLU; lower maximum order, a step limit and a given first step
+    if case.startswith("rig"):
+        s, t_end, extra = rig, 0.05, {}
+    else:
+        from pvgraph.circuits.machine import build_machine
+        s, t_end = build_machine().compile(backend="c"), 0.1
+        extra = dict(max_order=3, max_step=1e-3, first_step=1e-5)
+
+    def run(cs):
+        s.reset_modes()
+        return solve_dae(s.residual, (0.0, t_end), s.y0, s.yp0, rtol=1e-5,
+                         atol=1e-5 * s.nominal, algebraic=s.algebraic, var_names=s.names,
+                         events=s.solver_events(), suppress_alg=True,
+                         no_growth_after_failure=True, newton_iterate_retry=True,
+                         c_step=cs, **extra)
+
+    a, b = both(run)
+    assert_identical(a, b)
+    assert b.stats["nre"] > 2 * b.stats["nni"]        # most residuals went to differences
+    assert c_steps["n"] == b.stats["nsteps"] > 100
+
+
 class DrainParams(Params):
     rate: float = Field(..., gt=0.0, description="Fall rate of the level [m/s]")
 
