@@ -18,8 +18,9 @@ compiler or a missing routine leaves the Python step in use.
 It applies when the residual is a C-route :meth:`System.residual <pvgraph.system.System>`
 of at least 2 unknowns and no variable is declared non-negative. Dense iteration matrices
 (up to ``System.DENSE_MAX`` unknowns) are solved in C with the LU factors; sparse ones
-(SuperLU) are solved by the Python code, called back once per Newton iteration. ``solve_dae(..., c_step=False)`` (and ``simulate``) keeps
-the Python step; ``c_step=True`` requires the C step.
+(SuperLU) are solved by the Python code, called back once per Newton iteration.
+``solve_dae(..., c_step=False)`` (and ``simulate``) keeps the Python step; ``c_step=True``
+requires the C step.
 """
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
 from pvgraph.errors import SolverError
 from pvgraph.simulate import simulate
 from pvgraph.solver import cstep, solve_dae
-from pvgraph.units import bar, litre, lpm, mm2
+from pvgraph.units import litre, lpm, mm2
 
 pytestmark = pytest.mark.skipif(cbackend.c_compiler() is None, reason="no C compiler")
 
@@ -210,7 +210,8 @@ def test_the_integrator_state_after_every_step(rig):
             cs, rig.residual, rig.n, 1e-6, atol, rig.differential.astype(float), jac,
             LUSolver(), 5, None, rig.names, True, None, True)
         integ[cs].reinit(0.0, y0, yp0, 0.2)
-    assert type(integ[True]) is cstep.CStepIntegrator and type(integ[False]) is not cstep.CStepIntegrator
+    assert type(integ[True]) is cstep.CStepIntegrator
+    assert type(integ[False]) is not cstep.CStepIntegrator
     for k in range(150):
         if k == 75:
             t = integ[False].tn
