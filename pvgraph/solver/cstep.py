@@ -202,12 +202,13 @@ class CStepIntegrator(IDAIntegrator):
     and ``yp`` are fresh arrays after every step, as with the Python step.
     """
 
-    for _name in ("tn", "t_bound", "hh", "hused", "cj", "cjlast", "cjold", "ck", "ss", "t_old",
-                  "kk", "kused", "phase", "ns", "nst_restart", "nst", "nre", "nni", "netf",
-                  "ncfn", "nsetups"):
-        locals()[_name] = _field(_name)
-    del _name
-    _ee_norm = _field("ee_norm")
+    tn, t_bound, hh, hused = _field("tn"), _field("t_bound"), _field("hh"), _field("hused")
+    cj, cjlast, cjold, ck = _field("cj"), _field("cjlast"), _field("cjold"), _field("ck")
+    ss, t_old, _ee_norm = _field("ss"), _field("t_old"), _field("ee_norm")
+    kk, kused, phase, ns = _field("kk"), _field("kused"), _field("phase"), _field("ns")
+    nst_restart, nst, nre, nni = (_field("nst_restart"), _field("nst"), _field("nre"),
+                                  _field("nni"))
+    netf, ncfn, nsetups = _field("netf"), _field("ncfn"), _field("nsetups")
 
     @property
     def force_setup(self):
