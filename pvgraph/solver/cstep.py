@@ -150,12 +150,15 @@ def _load():
 
 
 def _self_check(k):
-    """The BLAS calls of the kernel give numpy's numbers on random data (else: not used)."""
+    """The kernel's BLAS and LAPACK calls give numpy's and scipy's numbers on random data."""
+    from pvgraph.solver.linalg import LUSolver
     itype = _i64 if k.blas64 else ctypes.c_int
     ddot = ctypes.CFUNCTYPE(_dbl, itype, _vp, itype, _vp, itype)(k.ddot)
     gemv = ctypes.CFUNCTYPE(None, ctypes.c_int, ctypes.c_int, itype, itype, _dbl, _vp, itype,
                             _vp, itype, _dbl, _vp, itype)(k.dgemv)
     axpy = ctypes.CFUNCTYPE(None, itype, _dbl, _vp, itype, _vp, itype)(k.daxpy)
+    ip = ctypes.POINTER(ctypes.c_int)
+    getrs = ctypes.CFUNCTYPE(None, ctypes.c_char_p, ip, ip, _vp, ip, _vp, _vp, ip, ip)(k.dgetrs)
     rng = np.random.default_rng(7)
     for n in (2, 7, 33, 91, 120):
         v = rng.standard_normal(n) * 10.0 ** rng.integers(-6, 6, n)
@@ -172,6 +175,18 @@ def _self_check(k):
                      out.ctypes.data, 1)
             if not np.array_equal(out, np.dot(g, phi)):
                 raise ValueError("the kernel's gemv/axpy differs from numpy's dot")
+        m = rng.standard_normal((n, n)) + n * np.eye(n)
+        b = rng.standard_normal(n)
+        lu = LUSolver()
+        lu.factor(m.copy())
+        x = b.copy()
+        ni, one, info = ctypes.c_int(n), ctypes.c_int(1), ctypes.c_int(0)
+        piv = np.add(lu._piv, 1, dtype=np.int32)
+        getrs(ctypes.c_char_p(b"N"), ctypes.byref(ni), ctypes.byref(one),
+              lu._lu.ctypes.data, ctypes.byref(ni), piv.ctypes.data, x.ctypes.data,
+              ctypes.byref(ni), ctypes.byref(info))
+        if not np.array_equal(x, lu.solve(b)):
+            raise ValueError("the kernel's dgetrs differs from scipy's getrs")
 
 
 def c_system_of(fun):

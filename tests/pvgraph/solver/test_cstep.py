@@ -239,3 +239,22 @@ def test_c_step_true_where_it_does_not_apply_is_refused():
     # and the Python step runs it without the option
     r = solve_dae(f, (0.0, 1.0), [1.0, 2.0], [-1.0, -2.0], rtol=1e-8, atol=1e-10)
     assert r.y[-1] == pytest.approx([math.exp(-1.0), 2 * math.exp(-1.0)], rel=1e-6)
+
+
+def test_without_a_compiler_the_python_step_runs(monkeypatch, c_steps):
+    c = Circuit("pvo")
+    node = c.add("node", VolumeNode(V=litre(0.5)))
+    o = c.add("o", Orifice(A=mm2(2.0)))
+    c.connect(c.add("pump", FlowSource(Q=lpm(10))).port, node.port, o.a)
+    c.connect(o.b, c.add("tank", Tank()).port)
+    s = c.compile(backend="c")
+    ref = simulate(s, 0.5)
+    monkeypatch.setattr(cstep, "_kernel", None)
+    monkeypatch.setattr(cstep, "_kernel_error", None)
+    monkeypatch.setattr(cbackend, "c_compiler", lambda: None)
+    got = simulate(s, 0.5)
+    assert c_steps["n"] == ref.stats["nsteps"] > 0       # the first run only
+    assert_identical(ref, got)
+    assert "no C compiler" in cstep.kernel_error()
+    with pytest.raises(ValueError, match="not available"):
+        simulate(s, 0.5, c_step=True)
