@@ -98,9 +98,10 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
     c_step : bool, optional
         Take the steps in C (:mod:`pvgraph.solver.cstep`: the same numbers as the Python
         step, bit for bit). None (default): where it applies -- the residual is a C-route
-        ``System.residual`` of 2 to ``System.DENSE_MAX`` unknowns with a dense iteration
-        matrix and no ``nonnegative`` variables -- and a C compiler is found; False: always
-        the Python step; True: the C step, ValueError where it does not apply.
+        ``System.residual`` of at least 2 unknowns and no variable is ``nonnegative`` -- and
+        a C compiler is found (sparse iteration matrices are solved by SuperLU, called back
+        from C); False: always the Python step; True: the C step, ValueError where it does
+        not apply.
     jac : callable, optional
         ``jac(t, y, yp, c) -> dF/dy + c dF/dy'`` as ndarray or scipy.sparse matrix. Finite
         differences when None.
