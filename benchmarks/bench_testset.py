@@ -17,6 +17,12 @@ Columns: steps, residual evaluations (nre), mescd at t_end, median wall time ove
 With ``--variants`` pvgraph is also run with ``suppress_alg`` and ``NO_GROWTH_AFTER_FAILURE``
 switched (steps and mescd, to decide the defaults).
 
+With ``--compiled`` a second table compares, on the same rows, pvgraph on the residual traced
+from ``residual_lib`` and compiled to C (:func:`pvgraph.dae.compile_dae` with ``backend="c"``,
+exact symbolic Jacobian, the solver's step in C: the counterpart of CasADi's compiled SX) with
+IDAS, next to pvgraph on the Python residual. Times exclude the one-off compilations on both
+sides (CasADi's integrator construction, pvgraph's tracing and C build).
+
 With ``--spread`` each row also reports the median steps and mescd of pvgraph and IDA over
 the tolerances tol (1 + d), d in 0, +-1e-4, +-2e-4, +-5e-4, +-1e-3, +-2e-3 (rtol and atol
 scaled together). The step-size sequence of both solvers is chaotic in the last bit (HIRES at
@@ -26,7 +32,8 @@ are not there on the medians.
 
 Usage::
 
-    python benchmarks/bench_testset.py [--repeats 3] [--variants] [--spread] [--problems hires,e5]
+    python benchmarks/bench_testset.py [--repeats 3] [--variants] [--spread] [--compiled]
+        [--problems hires,e5]
 """
 
 from __future__ import annotations
@@ -148,6 +155,60 @@ def make_idas(p, tol):
     return run
 
 
+def make_pvgraph_c(p, tol):
+    """pvgraph on the traced, C-compiled residual of ``residual_lib`` (None without one)."""
+    from pvgraph.dae import compile_dae
+    if p.residual_lib is None:
+        return None
+    system = compile_dae(p.residual_lib, p.y0, p.yp0, names=p.var_names, backend="c")
+    jac = system.solver_jacobian()
+
+    def run():
+        t = time.perf_counter()
+        res = solve_dae(system.residual, p.t_span, p.y0, p.yp0, rtol=tol, atol=p.atol(tol),
+                        jac=jac, algebraic=p.algebraic, calc_initial=None, max_steps=10**7)
+        return time.perf_counter() - t, res.stats["nsteps"], res.stats["nre"], res.y[-1]
+    return run
+
+
+def compiled_table(problems, repeats):
+    """pvgraph (Python residual), pvgraph (compiled C) and IDAS, row by row."""
+    head = ("| problem | rtol | pvgraph Python: steps | mescd | ms | pvgraph C: steps | nre | "
+            "mescd | ms | IDAS steps | nre | mescd | ms | Python/C | C/IDAS |")
+    print("\n" + head)
+    print("|" + "---|" * (head.count("|") - 1))
+    ratios = []
+    for key in problems:
+        p = PROBLEMS[key]
+        for tol in (LONG_TOLS if p.slow else TOLS):
+            reps = 1 if p.slow else repeats
+            m = lambda yf: mescd(yf, p.y_ref, p.atol(tol), tol)  # noqa: E731
+            run_c = make_pvgraph_c(p, tol)
+            if run_c is None:
+                continue
+            t_pv, (_, s_pv, _, y_pv) = median_run(lambda: run_pvgraph(p, tol), reps)
+            run_c()      # once untimed on both sides: the C step's kernel loads on first use
+            t_c, (_, s_c, n_c, y_c) = median_run(run_c, reps)
+            row = (f"| {p.name} | {tol:.0e} | {s_pv} | {m(y_pv):.2f} | {t_pv * 1e3:.1f} | "
+                   f"{s_c} | {n_c} | {m(y_c):.2f} | {t_c * 1e3:.2f} ")
+            idas = make_idas(p, tol)
+            if idas is not None:
+                try:
+                    idas()
+                    t_i, (_, s_i, n_i, y_i) = median_run(idas, reps)
+                except RuntimeError:
+                    idas = None
+            if idas is not None:
+                ratios.append(t_c / t_i)
+                row += (f"| {s_i} | {n_i} | {m(y_i):.2f} | {t_i * 1e3:.2f} | {t_pv / t_c:.1f} "
+                        f"| {t_c / t_i:.2f} |")
+            else:
+                row += f"| - | - | - | - | {t_pv / t_c:.1f} | - |"
+            print(row, flush=True)
+    print(f"median wall ratio pvgraph C / IDAS {statistics.median(ratios):.2f} "
+          f"({len(ratios)} rows)")
+
+
 def median_run(run, repeats):
     outs = [run() for _ in range(repeats)]
     return statistics.median(o[0] for o in outs), outs[-1]
@@ -171,8 +232,13 @@ def main():
     parser.add_argument("--spread", action="store_true",
                         help="medians over tolerances perturbed by up to 0.2 %%")
     parser.add_argument("--problems", default=",".join(PROBLEMS))
+    parser.add_argument("--compiled", action="store_true",
+                        help="only the table of pvgraph on traced, C-compiled residuals")
     args = parser.parse_args()
     print(machine())
+    if args.compiled:
+        compiled_table(args.problems.split(","), args.repeats)
+        return
     print(f"repeats={args.repeats}; pvgraph NO_GROWTH_AFTER_FAILURE="
           f"{ida_module.NO_GROWTH_AFTER_FAILURE}")
     head = ("| problem | rtol | pvgraph steps | nre | mescd | ms | IDA steps | nre | mescd | ms "
