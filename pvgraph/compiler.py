@@ -40,6 +40,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import maximum_bipartite_matching
 
 from . import expr as E
+from ._templates import Templates
 from .circuit import Circuit
 from .component import SIGNAL, Component
 from .errors import CircuitError, ConnectionError_, StructureError
@@ -116,11 +117,14 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
 
     registry: dict = {}   # parameter name -> ParameterInfo, in the order first read
     trace = E.ParameterTrace({})
+    templates = Templates()
+    found = []
     for path, comp in leaves:
         _declare_variables(path, comp, infos, registry)
         trace.where = f"{type(comp).__name__}.equations of {path!r}"
         with trace:
-            residuals, v = comp.trace(path, registry)
+            residuals, v, leaves_read = templates.trace(comp, path, registry, trace)
+        found.extend(leaves_read)
         for k, r in enumerate(residuals):
             equations.append(_Equation(r, path, f"{path} equation {k + 1} "
                                                 f"({type(comp).__name__})"))
@@ -132,8 +136,9 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
             mode_names.append(f"{path}.#{mname}")
             mode_start.append(float(mstart))
 
+    del templates
     equations.extend(_connection_equations(circuit, leaves, infos))
-    found = [E.leaves(eq.expr, ("sym", "der")) for eq in equations]
+    found.extend(E.leaves(eq.expr, ("sym", "der")) for eq in equations[len(found):])
     _check_symbols(equations, found, infos, set(mode_names))
 
     for name, info in registry.items():
