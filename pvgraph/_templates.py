@@ -93,7 +93,7 @@ class Template:
         self.values = {field: _value(comp.params, field) for field, _ in self.structural}
         self.keep: set[int] = set()   # nodes an instance shares with the template
         self.verified = False
-        self._build = None
+        self._build = self._found = None
         for node in self.order:
             if node.op in ("interp", "interp_d") or (not node.args and
                                                      node.op not in _TEMPLATE_LEAVES):
@@ -121,7 +121,6 @@ class Template:
         Registers the parameters read (in ``registry``), their leaves and the structural ones
         (in ``trace``) as the trace of ``comp`` would.
         """
-        name = self.rename(path)
         params = comp.params
         for field, kind, unit, desc in self.reads:
             full = f"{path}.{field}"
@@ -142,8 +141,12 @@ class Template:
                 enumerate(zip(self.events, conditions)):
             action = None if no_action else _LazyAction(comp, path, k)
             events.append(EventSpec(ev_name, cond, direction, action, terminal, at_start))
-        name = self.rename(path)
-        found = [[(op, name(nm)) for op, nm in lv] for lv in self.found]
+        if self._found is None:    # (op, name suffix after the path, or the name itself)
+            head = self.path + "."
+            self._found = [[(op, nm[len(self.path):], None) if nm.startswith(head) else
+                            (op, None, nm) for op, nm in lv] for lv in self.found]
+        found = [[(op, path + tail if tail is not None else nm) for op, tail, nm in lv]
+                 for lv in self._found]
         return residuals, _Traced(observed, events), found
 
     def _builder(self):

@@ -343,52 +343,84 @@ def _affine(e: E.Expr):
         if a.op == "sym" and b.op == "sym" and a.value != b.value and "#" not in a.value \
                 and "#" not in b.value:
             return {a.value: 1.0, b.value: 1.0 if e.op == "add" else -1.0}, 0.0
-    nodes = E.postorder([e], MAX_AFFINE_NODES)
-    if nodes is None:
-        return None
+    # the nodes of :func:`~pvgraph.expr.postorder`, each given its form as soon as it is
+    # reached: the first operation that is not affine (or the node past MAX_AFFINE_NODES)
+    # ends the walk
     form: dict[int, tuple[dict, object]] = {}
-    for n in nodes:
-        op = n.op
-        if op == "const":
-            form[id(n)] = ({}, n.value)
-        elif op == "param":
-            form[id(n)] = ({}, n)
-        elif op == "sym" and "#" not in n.value:
-            form[id(n)] = ({n.value: 1.0}, 0.0)
-        elif op in E.LEAVES:
+    if not e.args:
+        f = _affine_form(e, form)
+        if f is None:
             return None
-        else:
-            kids = [form[id(a)] for a in n.args]
-            if all(not c for c, _ in kids):
-                form[id(n)] = ({}, n)  # parametric: a number for any one run
-            elif op in ("add", "sub"):
-                (ca, ka), (cb, kb) = kids
-                sub = op == "sub"
-                c = dict(ca)
-                for v, w in cb.items():
-                    w = _kneg(w) if sub else w
-                    c[v] = _kadd(c[v], w) if v in c else w
-                form[id(n)] = (c, _kadd(ka, _kneg(kb) if sub else kb))
-            elif op == "neg":
-                ca, ka = kids[0]
-                form[id(n)] = ({v: _kneg(w) for v, w in ca.items()}, _kneg(ka))
-            elif op == "mul":
-                (ca, ka), (cb, kb) = kids
-                if ca and cb:
-                    return None
-                if ca:
-                    form[id(n)] = ({v: _kmul(w, kb) for v, w in ca.items()}, _kmul(ka, kb))
-                else:
-                    form[id(n)] = ({v: _kmul(w, ka) for v, w in cb.items()}, _kmul(ka, kb))
-            elif op == "div":
-                (ca, ka), (cb, kb) = kids
-                if cb or (isinstance(kb, float) and kb == 0.0):
-                    return None
-                form[id(n)] = ({v: _kdiv(w, kb) for v, w in ca.items()}, _kdiv(ka, kb))
+        form[id(e)] = f
+    else:
+        seen = {id(e)}
+        stack = [(e, iter(e.args))]
+        while stack:
+            node, children = stack[-1]
+            for a in children:
+                if id(a) not in seen:
+                    seen.add(id(a))
+                    if len(seen) > MAX_AFFINE_NODES:
+                        return None
+                    if a.args:
+                        stack.append((a, iter(a.args)))
+                        break
+                    f = _affine_form(a, form)
+                    if f is None:
+                        return None
+                    form[id(a)] = f
             else:
-                return None
+                stack.pop()
+                f = _affine_form(node, form)
+                if f is None:
+                    return None
+                form[id(node)] = f
     coeffs, k = form[id(e)]
     return {v: w for v, w in coeffs.items() if not _kzero(w)}, k
+
+
+def _affine_form(n, form):
+    """The affine form ``(coeffs, const)`` of node ``n`` from its children's (in ``form``),
+    or None where it is not affine."""
+    op = n.op
+    if op == "const":
+        return ({}, n.value)
+    elif op == "param":
+        return ({}, n)
+    elif op == "sym" and "#" not in n.value:
+        return ({n.value: 1.0}, 0.0)
+    elif op in E.LEAVES:
+        return None
+    else:
+        kids = [form[id(a)] for a in n.args]
+        if all(not c for c, _ in kids):
+            return ({}, n)  # parametric: a number for any one run
+        elif op in ("add", "sub"):
+            (ca, ka), (cb, kb) = kids
+            sub = op == "sub"
+            c = dict(ca)
+            for v, w in cb.items():
+                w = _kneg(w) if sub else w
+                c[v] = _kadd(c[v], w) if v in c else w
+            return (c, _kadd(ka, _kneg(kb) if sub else kb))
+        elif op == "neg":
+            ca, ka = kids[0]
+            return ({v: _kneg(w) for v, w in ca.items()}, _kneg(ka))
+        elif op == "mul":
+            (ca, ka), (cb, kb) = kids
+            if ca and cb:
+                return None
+            if ca:
+                return ({v: _kmul(w, kb) for v, w in ca.items()}, _kmul(ka, kb))
+            else:
+                return ({v: _kmul(w, ka) for v, w in cb.items()}, _kmul(ka, kb))
+        elif op == "div":
+            (ca, ka), (cb, kb) = kids
+            if cb or (isinstance(kb, float) and kb == 0.0):
+                return None
+            return ({v: _kdiv(w, kb) for v, w in ca.items()}, _kdiv(ka, kb))
+        else:
+            return None
 
 
 # arithmetic on affine coefficients: floats, or parametric expressions where parameters enter
@@ -612,6 +644,19 @@ def _set_start(infos, elim, keep, coef, off):
     ie.start = coef * ik.start + off
 
 
+def _unit(coef) -> bool:
+    """True for the float coefficients with which ``coef * leaf (+ 0.0)`` folds to the leaf
+    or its negation."""
+    return coef.__class__ is float and (coef == 1.0 or coef == -1.0)
+
+
+def _renamed(op, target, coef):
+    """``coef * leaf`` for a coefficient ``_unit`` accepts, as the folding arithmetic builds
+    it (the leaf, or ``neg`` of it)."""
+    node = E.Expr(op, (), target)
+    return node if coef == 1.0 else E.Expr("neg", (node,))
+
+
 def _apply(e, subs, resolve):
     if not subs:
         return e
@@ -621,11 +666,15 @@ def _apply(e, subs, resolve):
             coef, target, off = resolve(node.value)
             if target is None:
                 return _kexpr(off)
+            if _unit(coef) and off.__class__ is float and off == 0.0:
+                return _renamed("sym", target, coef)
             return _kexpr(coef) * E.Expr("sym", (), target) + off
         if node.op == "der" and node.value in subs:
             coef, target, _ = resolve(node.value)
             if target is None or _kzero(coef):
                 return E.ZERO
+            if _unit(coef):
+                return _renamed("der", target, coef)
             return _kexpr(coef) * E.Expr("der", (), target)
         return None
 
