@@ -10,7 +10,9 @@ bit for bit.
 
 Run: ``python benchmarks/check_compile_identity.py --before TREE [case ...]`` with ``TREE`` an
 export of the reference commit (``git archive <commit> | tar -x -C TREE``). Cases: ``chain:N``,
-``wide:M`` (see bench_scaling.py), ``rig`` (the PVG 32 on its lab rig), ``machine``.
+``wide:M`` (see bench_scaling.py), ``rig`` (the PVG 32 on its lab rig), ``machine``; a case
+with ``@rows`` appended compiles with ``array_rows=True`` (every repeated row shape as
+arrays, also in small circuits).
 """
 
 from __future__ import annotations
@@ -28,10 +30,12 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, os.environ.get("PVGRAPH_BENCH_TREE", str(HERE.parent)))
 
-DEFAULT = ["chain:40", "wide:30", "rig", "machine", "chain:2000", "wide:1500"]
+DEFAULT = ["chain:40", "wide:30", "rig", "machine", "rig@rows", "machine@rows", "chain:2000",
+           "wide:1500"]
 
 
 def build(case: str):
+    case = case.split("@")[0]
     if case == "rig":
         from pvgraph.circuits.pvg32.parameters import report_tuned
         from pvgraph.circuits.rig import build_rig, laminar_load
@@ -50,7 +54,7 @@ def fingerprint(case: str) -> dict:
     import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        s = build(case).compile()
+        s = build(case).compile(**({"array_rows": True} if case.endswith("@rows") else {}))
     rng = np.random.default_rng(1)
     y = s.y0 * (1.0 + 0.01 * rng.standard_normal(s.n)) + 0.001 * rng.standard_normal(s.n)
     yp = 0.01 * rng.standard_normal(s.n)

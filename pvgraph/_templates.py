@@ -93,7 +93,7 @@ class Template:
         self.values = {field: _value(comp.params, field) for field, _ in self.structural}
         self.keep: set[int] = set()   # nodes an instance shares with the template
         self.verified = False
-        self._build = self._found = None
+        self._build = self._found = self._classes = None
         for node in self.order:
             if node.op in ("interp", "interp_d") or (not node.args and
                                                      node.op not in _TEMPLATE_LEAVES):
@@ -148,6 +148,23 @@ class Template:
         found = [[(op, path + tail if tail is not None else nm) for op, tail, nm in lv]
                  for lv in self._found]
         return residuals, _Traced(observed, events), found
+
+    def row_names(self, path):
+        """Per residual, then per event condition, the distinct names of its variable,
+        derivative and parameter leaves (in the order first reached) for the instance at
+        ``path``: two instances' residuals are the same graph with these names exchanged."""
+        if self._classes is None:
+            head = self.path + "."
+            self._classes = []
+            for r in list(self.residuals) + [ev[1] for ev in self.events]:
+                names = {}
+                for node in E.postorder([r]):
+                    if node.op in ("sym", "der", "param"):
+                        names[node.value] = None
+                self._classes.append([(nm[len(self.path):], None) if nm.startswith(head) else
+                                      (None, nm) for nm in names])
+        return [tuple([path + tail if tail is not None else nm for tail, nm in cl])
+                for cl in self._classes]
 
     def _builder(self):
         """A generated function ``(path, leaf, registry) -> (residuals, observed expressions,
@@ -289,9 +306,13 @@ class Templates:
         self.by_key: dict = {}
         self.off: set = set()     # classes traced instance by instance
         self._code_ok: dict = {}
+        #: ``(template, path)`` when the residuals :meth:`trace` returned last are those of
+        #: the template renamed for ``path`` (see :meth:`Template.row_names`), else None
+        self.last = None
 
     def trace(self, comp, path, registry, trace):
         """``(residuals, traced, found)`` of ``comp``: built from a template or traced."""
+        self.last = None
         cls = type(comp)
         key = None
         if cls not in self.off and self._class_ok(cls) and \
@@ -304,6 +325,7 @@ class Templates:
         for tpl in variants:
             if tpl.matches(comp):
                 if tpl.verified:
+                    self.last = (tpl, path)
                     return tpl.instantiate(comp, path, registry, trace, where)
                 residuals, v, reads, structural, tables = _record(comp, path, registry, trace)
                 if not tables and tpl.verify(path, residuals, v, registry, reads, structural,
@@ -316,6 +338,7 @@ class Templates:
         tpl = Template(comp, path, residuals, v, reads, structural, where, registry)
         if tpl.usable and not tables:
             variants.append(tpl)
+            self.last = (tpl, path)
         else:
             self.off.add(cls)
         return residuals, v, tpl.found

@@ -119,12 +119,20 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     trace = E.ParameterTrace({})
     templates = Templates()
     found = []
+    # rows built from a template: id -> (row, key, names); rows of one key are one graph with
+    # their names exchanged (see _Provenance)
+    prov = _Provenance()
     for path, comp in leaves:
         _declare_variables(path, comp, infos, registry)
         trace.where = f"{type(comp).__name__}.equations of {path!r}"
         with trace:
             residuals, v, leaves_read = templates.trace(comp, path, registry, trace)
         found.extend(leaves_read)
+        if templates.last is not None:
+            tpl, at = templates.last
+            conditions = [ev.condition for ev in v.events]
+            for k, (r, names) in enumerate(zip(list(residuals) + conditions, tpl.row_names(at))):
+                prov.add(r, (tpl, k), names)
         for k, r in enumerate(residuals):
             equations.append(_Equation(r, path, f"{path} equation {k + 1} "
                                                 f"({type(comp).__name__})"))
@@ -137,7 +145,12 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
             mode_start.append(float(mstart))
 
     del templates
+    n_component = len(equations)
     equations.extend(_connection_equations(circuit, leaves, infos))
+    for eq in equations[n_component:]:
+        got = _connection_key(eq.expr)
+        if got is not None:
+            prov.add(eq.expr, *got)
     found.extend(E.leaves(eq.expr, ("sym", "der")) for eq in equations[len(found):])
     _check_symbols(equations, found, infos, set(mode_names))
 
@@ -149,7 +162,8 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     incidence = None
     if eliminate_aliases:
         incidence = []
-        equations = _eliminate_aliases(equations, infos, subs, trace.values, found, incidence)
+        equations = _eliminate_aliases(equations, infos, subs, trace.values, found, incidence,
+                                       prov)
     del found
 
     from .index_reduction import given_starts, reduce_index
@@ -160,7 +174,7 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     from .system import build_system
     system = build_system(circuit.name, equations, infos, subs, observed, events, mode_names,
                           mode_start, parameters=registry, tables=trace.tables,
-                          array_rows=array_rows)
+                          array_rows=array_rows, provenance=prov)
     system._circuit = circuit
     system._components = dict(leaves)
     system._models = {path: comp.params for path, comp in leaves}
@@ -287,6 +301,26 @@ def _connection_equations(root, leaves, infos) -> list[_Equation]:
         equations.append(_Equation(total, node_label,
                                    f"{node_label}: sum of {domain.through} is zero"))
     return equations
+
+
+def _connection_key(e):
+    """``(key, names)`` of a connection equation (``a - b``, or ``q1 + q2 + ... + qn`` summed
+    from the left) for :class:`_Provenance`, or None for another form."""
+    if e.op == "sub" and e.args[0].op == "sym" and e.args[1].op == "sym":
+        key, names = ("sub",), [e.args[0].value, e.args[1].value]
+    else:
+        names = []
+        while e.op == "add" and e.args[1].op == "sym":
+            names.append(e.args[1].value)
+            e = e.args[0]
+        if e.op != "sym" or not names:
+            return None
+        names.append(e.value)
+        names.reverse()
+        key = ("sum", len(names))
+    if len(set(names)) != len(names):
+        return None
+    return ("connection",) + key, tuple(names)
 
 
 def _node_label(labels):
@@ -481,7 +515,79 @@ def _kexpr(x):
     return x if isinstance(x, E.Expr) else E.const(x)
 
 
-def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=None):
+class _Provenance:
+    """Rows known to be one graph up to the names of their leaves.
+
+    A row built from a component template has the key ``(template, residual number)`` and the
+    distinct names of its variable, derivative and parameter leaves, in the template's order
+    (its classes). Substituting aliases into such a row gives a row whose graph follows from
+    its key and the substitution's pattern alone (per class: kept, fixed, or expressed in a
+    target, with the coefficient and offset as numbers, or the very expressions, and which
+    classes share a target): the folding arithmetic looks at operations, constants and node
+    identity, never at names. So rows of one key have one affine form (or none) and one row
+    shape, and both are computed once per key.
+    """
+
+    def __init__(self):
+        self.rows: dict[int, tuple] = {}   # id(row) -> (row, key number, names)
+        self.keys: dict = {}
+        self._in_token: dict[int, tuple] = {}
+
+    def add(self, row, key, names):
+        k = self.keys.get(key)
+        if k is None:
+            k = self.keys[key] = len(self.keys)
+        self.rows[id(row)] = (row, k, names)
+
+    def get(self, row):
+        """``(key number, names)`` of ``row``, or None."""
+        p = self.rows.get(id(row))
+        return None if p is None or p[0] is not row else p[1:]
+
+    def substituted(self, old, new, subs, resolve):
+        """Record ``new``, ``old`` with the aliases of ``subs`` substituted, if ``old`` is
+        known."""
+        p = self.get(old)
+        if p is None:
+            return
+        key, names = p
+        pattern = []
+        cls: dict[str, int] = {}
+        out = []
+
+        def place(nm):
+            c = cls.get(nm)
+            if c is None:
+                c = cls[nm] = len(out)
+                out.append(nm)
+            return c
+        for nm in names:
+            if nm not in subs:
+                pattern.append(("keep", place(nm)))
+                continue
+            coef, target, off = resolve(nm)
+            # the parameters a parametric coefficient or offset brings in are names too
+            brought = tuple(place(q) for x in (coef, off) if x.__class__ is not float
+                            for q in self._params(x))
+            how = (_token(coef), _token(off), brought)
+            pattern.append(("fix",) + how if target is None else ("sub", place(target)) + how)
+        self.add(new, (key, tuple(pattern)), tuple(out))
+
+    def _params(self, x):
+        """The names of the parameters in the parametric expression ``x`` (kept per node)."""
+        got = self._in_token.get(id(x))
+        if got is None or got[0] is not x:
+            got = self._in_token[id(x)] = (x, [nm for _, nm in E.leaves(x, ("param",))])
+        return got[1]
+
+
+def _token(x):
+    """A coefficient or offset in a substitution pattern: a float by its value, a parametric
+    expression by identity (the node the substitution puts in)."""
+    return repr(x) if x.__class__ is float else x
+
+
+def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=None, prov=None):
     """Remove unknowns defined by affine one- and two-variable equations (in place on subs).
 
     The unknown removed must have a constant coefficient, so that no parameter value can make
@@ -518,7 +624,10 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
         reads, and whether those are exact. An unknown expressed in another maps its leaf
         onto that one's; one fixed to a value (or a vanishing coefficient) can fold other
         terms away: the names are then a superset (read exactly where needed)."""
-        expr = _apply(expr, subs, resolve)
+        new_expr = _apply(expr, subs, resolve)
+        if prov is not None:
+            prov.substituted(expr, new_expr, subs, resolve)
+        expr = new_expr
         exact = True
         out = []
         for group in (syms, ders):
@@ -538,6 +647,17 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
     def read(expr):
         lv = E.leaves(expr, ("sym", "der"))
         return {nm for op, nm in lv if op == "sym"}, {nm for op, nm in lv if op == "der"}
+
+    not_affine: set = set()   # provenance keys whose rows are not affine
+
+    def affine(expr):
+        p = prov.get(expr) if prov is not None else None
+        if p is not None and p[0] in not_affine:
+            return None
+        form = _affine(expr)
+        if form is None and p is not None:
+            not_affine.add(p[0])
+        return form
 
     def plain(syms, ders):
         """False where :func:`_affine` cannot hold: a derivative or a mode is read."""
@@ -571,7 +691,7 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
             if not exact and not plain(syms, ders):   # a superset: the exact names decide
                 syms, ders = read(expr)
                 item[2], item[3], item[5] = syms, ders, True
-            form = _affine(expr) if plain(syms, ders) else None
+            form = affine(expr) if plain(syms, ders) else None
             if form is None:
                 keep.append(item)
                 continue

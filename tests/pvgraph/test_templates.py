@@ -16,6 +16,7 @@ from pydantic import Field
 
 from pvgraph import Circuit
 from pvgraph import _templates as T
+from pvgraph import compiler as K
 from pvgraph.component import Component, Hydraulic, Params
 from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
 from pvgraph.components.hydraulic.fluid import CavitationWarning
@@ -215,3 +216,52 @@ def test_rig_and_machine_compile_as_when_traced_one_by_one(monkeypatch):
     from pvgraph.circuits.rig import build_rig
     for build in (build_rig, build_machine):
         _same_as_traced_one_by_one(build, monkeypatch)
+
+
+class _NoProvenance(K._Provenance):
+    """Records nothing: every row shape, affine test and substitution computed row by row."""
+
+    def add(self, *args, **kwargs):
+        pass
+
+
+def _same_without_provenance(build, monkeypatch, **options):
+    shared = _fingerprint(build().compile(**options))
+    with monkeypatch.context() as m:
+        m.setattr(K, "_Provenance", _NoProvenance)
+        alone = _fingerprint(build().compile(**options))
+    assert shared == alone
+    return shared
+
+
+def _chain(n, areas):
+    c = Circuit("chain")
+    prev = c.add("pump", FlowSource(Q=lpm(5))).port
+    for k in range(n):
+        v = c.add(f"v{k}", VolumeNode(V=litre(0.05)))
+        o = c.add(f"o{k}", Orifice(A=mm2(areas(k))))
+        c.connect(prev, v.port, o.a)
+        prev = o.b
+    c.connect(prev, c.add("tank", Tank()).port)
+    return c
+
+
+@pytest.mark.parametrize("array_rows", [True, None])
+def test_rows_of_one_provenance_compile_as_row_by_row(monkeypatch, array_rows):
+    """Row shapes, affine tests and substitutions shared by rows of one template and one
+    substitution pattern give the system of doing each row by itself."""
+    _same_without_provenance(lambda: _chain(40, lambda k: 2.0 + 0.1 * k), monkeypatch,
+                             array_rows=array_rows)
+    values = [(1.0, 1.0), (2.0, 1.0), (1.0, 3.0)] * 4
+    _same_without_provenance(
+        lambda: _ladder([_Scaled(K=1e-9 * (k + 1), n=n, baked=b)
+                         for k, (n, b) in enumerate(values)]), monkeypatch,
+        array_rows=array_rows)
+
+
+@pytest.mark.filterwarnings("ignore::pvgraph.errors.PlausibilityWarning")
+def test_rig_and_machine_with_array_rows_compile_as_row_by_row(monkeypatch):
+    from pvgraph.circuits.machine import build_machine
+    from pvgraph.circuits.rig import build_rig
+    for build in (build_rig, build_machine):
+        _same_without_provenance(build, monkeypatch, array_rows=True)
