@@ -94,6 +94,7 @@ class Template:
         self.keep: set[int] = set()   # nodes an instance shares with the template
         self.verified = False
         self._build = self._found = self._classes = None
+        self.last_nodes = None   # the nodes of each residual built last, in post-order
         for node in self.order:
             if node.op in ("interp", "interp_d") or (not node.args and
                                                      node.op not in _TEMPLATE_LEAVES):
@@ -133,7 +134,8 @@ class Template:
             trace.structural.setdefault(f"{path}.{field}", f"{how} in {where}")
         if self._build is None:
             self._build = self._builder()
-        residuals, obs_exprs, conditions = self._build(path, trace.leaf, registry)
+        residuals, obs_exprs, conditions, self.last_nodes = self._build(path, trace.leaf,
+                                                                        registry)
         observed = {nm: Observed(e, unit, desc)
                     for (nm, _, unit, desc), e in zip(self.observed, obs_exprs)}
         events = []
@@ -168,7 +170,7 @@ class Template:
 
     def _builder(self):
         """A generated function ``(path, leaf, registry) -> (residuals, observed expressions,
-        event conditions)`` building the template's graphs for the instance at ``path``: one
+        event conditions, each residual's nodes in post-order)`` building the template's graphs for the instance at ``path``: one
         statement per node, leaves named after ``path`` (parameter leaves from ``leaf``)."""
         head = self.path + "."
         num: dict[int, str] = {}
@@ -205,8 +207,11 @@ class Template:
 
         def tup(roots):
             return "(" + "".join(num[id(r)] + ", " for r in roots) + ")"
+        # and each residual's nodes in its own post-order (for substituting into it later)
+        nodes = "(" + "".join("[" + ", ".join(num[id(n)] for n in E.postorder([r])) + "], "
+                              for r in self.residuals) + ")"
         lines.append(f"    return ({tup(self.residuals)}, {tup([ob[1] for ob in self.observed])}, "
-                     f"{tup([ev[1] for ev in self.events])})")
+                     f"{tup([ev[1] for ev in self.events])}, {nodes})")
         namespace = {"X": E.Expr, "K": kept, "V": kept}
         exec(compile("\n".join(lines), f"<template of {self.cls.__name__}>", "exec"),
              namespace)  # noqa: S102 - generated from the template's graph

@@ -48,6 +48,7 @@ from .errors import CircuitError, ConnectionError_, StructureError
 __all__ = ["compile_circuit", "VarInfo"]
 
 MAX_AFFINE_NODES = 40  # larger expressions are not tested for the affine alias form
+MAX_BUILDER_NODES = 400  # rows substituted by a generated builder have at most these nodes
 NAMES_IN_MESSAGES = 12
 
 
@@ -131,8 +132,9 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
         if templates.last is not None:
             tpl, at = templates.last
             conditions = [ev.condition for ev in v.events]
+            nodes = tpl.last_nodes or ()
             for k, (r, names) in enumerate(zip(list(residuals) + conditions, tpl.row_names(at))):
-                prov.add(r, (tpl, k), names)
+                prov.add(r, (tpl, k), names, nodes[k] if k < len(nodes) else None)
         for k, r in enumerate(residuals):
             equations.append(_Equation(r, path, f"{path} equation {k + 1} "
                                                 f"({type(comp).__name__})"))
@@ -525,35 +527,49 @@ class _Provenance:
     target, with the coefficient and offset as numbers, or the very expressions, and which
     classes share a target): the folding arithmetic looks at operations, constants and node
     identity, never at names. So rows of one key have one affine form (or none) and one row
-    shape, and both are computed once per key.
+    shape, computed once per key, and a substitution of one pattern into rows of one key is
+    a generated builder (made from the second such row, checked against the third) that
+    creates the changed nodes and reuses the row's unchanged ones, as
+    :func:`pvgraph.expr.substitute` would.
     """
 
     def __init__(self):
-        self.rows: dict[int, tuple] = {}   # id(row) -> (row, key number, names)
+        self.rows: dict[int, tuple] = {}   # id(row) -> (row, key number, names, nodes or None)
         self.keys: dict = {}
         self._in_token: dict[int, tuple] = {}
+        self._builders: dict[int, object] = {}   # key number -> builder, candidate or False
 
-    def add(self, row, key, names):
+    def number(self, key) -> int:
         k = self.keys.get(key)
         if k is None:
             k = self.keys[key] = len(self.keys)
-        self.rows[id(row)] = (row, k, names)
+        return k
+
+    def add(self, row, key, names, nodes=None):
+        self.rows[id(row)] = (row, self.number(key), names, nodes)
+
+    def forget_nodes(self):
+        """Drop the rows' node lists (needed while substituting only)."""
+        for k, p in self.rows.items():
+            if p[3] is not None:
+                self.rows[k] = p[:3] + (None,)
 
     def get(self, row):
         """``(key number, names)`` of ``row``, or None."""
         p = self.rows.get(id(row))
-        return None if p is None or p[0] is not row else p[1:]
+        return None if p is None or p[0] is not row else p[1:3]
 
-    def substituted(self, old, new, subs, resolve):
-        """Record ``new``, ``old`` with the aliases of ``subs`` substituted, if ``old`` is
-        known."""
-        p = self.get(old)
-        if p is None:
-            return
-        key, names = p
+    def substitute(self, old, subs, resolve):
+        """``old`` with the aliases of ``subs`` substituted (as :func:`_apply` does), recorded
+        with its key if ``old``'s is known."""
+        p = self.rows.get(id(old))
+        if p is None or p[0] is not old:
+            return _apply(old, subs, resolve)
+        _, key, names, old_nodes = p
         pattern = []
         cls: dict[str, int] = {}
         out = []
+        tokens = []
 
         def place(nm):
             c = cls.get(nm)
@@ -567,11 +583,44 @@ class _Provenance:
                 continue
             coef, target, off = resolve(nm)
             # the parameters a parametric coefficient or offset brings in are names too
-            brought = tuple(place(q) for x in (coef, off) if x.__class__ is not float
-                            for q in self._params(x))
-            how = (_token(coef), _token(off), brought)
+            brought = []
+            for x in (coef, off):
+                if x.__class__ is not float:
+                    tokens.append(x)
+                    brought.extend(place(q) for q in self._params(x))
+            how = (_token(coef), _token(off), tuple(brought))
             pattern.append(("fix",) + how if target is None else ("sub", place(target)) + how)
-        self.add(new, (key, tuple(pattern)), tuple(out))
+        names = tuple(out)
+        k = self.number((key, tuple(pattern)))
+        del self.rows[id(old)]      # an equation is substituted into once per pass
+        state = self._builders.get(k)
+        if callable(state):
+            if old_nodes is None:
+                old_nodes = E.postorder([old])
+            new, nodes = state(names, old_nodes)
+            self.rows[id(new)] = (new, k, names, nodes)
+            return new
+        new = _apply(old, subs, resolve)
+        self.rows[id(new)] = (new, k, names, None)
+        # the first row of a key is substituted as it is; the second gives a candidate
+        # builder (a key met once costs no builder), the third checks it
+        if state is None:
+            self._builders[k] = 1
+            return new
+        if state is False:
+            return new
+        if old_nodes is None:
+            old_nodes = E.postorder([old])
+        if state == 1:
+            fn = None
+            if len(old_nodes) <= MAX_BUILDER_NODES:
+                fn = _derived_builder(old_nodes, new, names, tokens)
+            self._builders[k] = _Candidate(fn) if fn is not None else False
+        elif _built_alike(state.fn, names, old_nodes, new, tokens):
+            self._builders[k] = state.fn
+        else:
+            self._builders[k] = False
+        return new
 
     def _params(self, x):
         """The names of the parameters in the parametric expression ``x`` (kept per node)."""
@@ -579,6 +628,94 @@ class _Provenance:
         if got is None or got[0] is not x:
             got = self._in_token[id(x)] = (x, [nm for _, nm in E.leaves(x, ("param",))])
         return got[1]
+
+
+class _Candidate:
+    """A builder made from one row of a key, not yet checked against another."""
+
+    __slots__ = ("fn",)
+
+    def __init__(self, fn):
+        self.fn = fn
+
+
+def _shared_nodes(tokens) -> set:
+    """Nodes every row of a key holds as the same objects: the coefficients and offsets the
+    substitution puts in (and what they hold) and the folding's constants."""
+    ids = {id(E.ZERO), id(E.ONE)}
+    if tokens:
+        ids.update(id(n) for n in E.postorder(tokens))
+    return ids
+
+
+def _derived_builder(old_nodes, new, names, tokens):
+    """A generated ``(names, old nodes) -> (row, its nodes in post-order)`` rebuilding ``new``
+    (``old`` substituted) for another row of the same key, or None where ``new`` holds a
+    node it cannot place."""
+    old_pos = {id(n): j for j, n in enumerate(old_nodes)}
+    shared = _shared_nodes(tokens)
+    cls = {nm: c for c, nm in enumerate(names)}
+    order = E.postorder([new])
+    num: dict[int, str] = {}
+    kept: list = []
+    lines = ["def build(names, old):"]
+    for i, node in enumerate(order):
+        var = num[id(node)] = f"n{i}"
+        if id(node) in old_pos:
+            lines.append(f"    {var} = old[{old_pos[id(node)]}]")
+        elif id(node) in shared:
+            lines.append(f"    {var} = K[{len(kept)}]")
+            kept.append(node)
+        elif node.args:
+            args = "".join(num[id(a)] + ", " for a in node.args)
+            value = ""
+            if node.value is not None:
+                value = f", K[{len(kept)}]"
+                kept.append(node.value)
+            lines.append(f"    {var} = X({node.op!r}, ({args}){value})")
+        elif node.op in ("sym", "der") and node.value in cls:
+            lines.append(f"    {var} = X({node.op!r}, (), names[{cls[node.value]}])")
+        elif node.op == "const":
+            lines.append(f"    {var} = X('const', (), K[{len(kept)}])")
+            kept.append(node.value)
+        elif node.op == "time":
+            lines.append(f"    {var} = X('time', (), None)")
+        else:
+            return None
+    lines.append(f"    return n{len(order) - 1}, [{', '.join(num[id(n)] for n in order)}]")
+    namespace = {"X": E.Expr, "K": kept}
+    exec(compile("\n".join(lines), "<substitution builder>", "exec"),  # noqa: S102
+         namespace)   # generated from the graph of a substituted row
+    return namespace["build"]
+
+
+def _built_alike(build, names, old_nodes, new, tokens) -> bool:
+    """True if ``build`` gives ``new`` (``old`` substituted, by :func:`_apply`): the same
+    operations, payloads and children node for node, the old and shared nodes themselves and
+    fresh nodes elsewhere."""
+    got, got_nodes = build(names, old_nodes)
+    want = E.postorder([new])
+    if len(want) != len(got_nodes) or got is not got_nodes[-1]:
+        return False
+    old_ids = {id(n) for n in old_nodes} | _shared_nodes(tokens)
+    pos_w = {id(n): i for i, n in enumerate(want)}
+    pos_g = {id(n): i for i, n in enumerate(got_nodes)}
+    if len(pos_g) != len(got_nodes):
+        return False
+    for w, g in zip(want, got_nodes):
+        if id(w) in old_ids:
+            if g is not w:
+                return False
+            continue
+        if g is w or id(g) in old_ids or w.op != g.op or len(w.args) != len(g.args):
+            return False
+        if w.args:
+            if w.value is not g.value or [pos_w[id(a)] for a in w.args] != \
+                    [pos_g[id(a)] for a in g.args]:
+                return False
+        elif repr(w.value) != repr(g.value):
+            return False
+    return True
 
 
 def _token(x):
@@ -624,10 +761,8 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
         reads, and whether those are exact. An unknown expressed in another maps its leaf
         onto that one's; one fixed to a value (or a vanishing coefficient) can fold other
         terms away: the names are then a superset (read exactly where needed)."""
-        new_expr = _apply(expr, subs, resolve)
-        if prov is not None:
-            prov.substituted(expr, new_expr, subs, resolve)
-        expr = new_expr
+        expr = _apply(expr, subs, resolve) if prov is None else \
+            prov.substitute(expr, subs, resolve)
         exact = True
         out = []
         for group in (syms, ders):
@@ -748,6 +883,8 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
         out.append(_Equation(expr, eq.origin, eq.label))
         if incidence is not None:
             incidence.append((syms, ders) if exact else read(expr))
+    if prov is not None:
+        prov.forget_nodes()
     return out
 
 

@@ -265,3 +265,41 @@ def test_rig_and_machine_with_array_rows_compile_as_row_by_row(monkeypatch):
     from pvgraph.circuits.rig import build_rig
     for build in (build_rig, build_machine):
         _same_without_provenance(build, monkeypatch, array_rows=True)
+
+
+def test_a_substitution_builder_rebuilds_rows_of_its_key_and_only_those():
+    from pvgraph import expr as E
+
+    def row(tag):
+        a, b, c = (E.Expr("sym", (), f"{tag}.{n}") for n in ("a", "b", "c"))
+        k = E.Expr("param", (), f"{tag}.k")
+        shared = k * (a - b)
+        return shared * shared + E.sqrt(c) * 2.0
+
+    def renamed(node, tag, target):
+        # a -> target (kept name), b -> -2 * target (fixed coefficient), c kept
+        if node.op != "sym":
+            return None
+        if node.value.endswith(".a"):
+            return E.Expr("sym", (), target)
+        if node.value.endswith(".b"):
+            return -2.0 * E.Expr("sym", (), target)
+        return None
+
+    rows = {tag: row(tag) for tag in ("r1", "r2", "r3")}
+    new = {tag: E.substitute([r], lambda n, t=tag: renamed(n, t, f"{t}.x"))[0]
+           for tag, r in rows.items()}
+    names = {tag: (f"{tag}.x", f"{tag}.c", f"{tag}.k") for tag in rows}
+    build = K._derived_builder(E.postorder([rows["r1"]]), new["r1"], names["r1"], [])
+    old2 = E.postorder([rows["r2"]])
+    assert K._built_alike(build, names["r2"], old2, new["r2"], [])
+    got, nodes = build(names["r3"], E.postorder([rows["r3"]]))
+    assert E.to_text(got) == E.to_text(new["r3"])
+    assert nodes[-1] is got and len(nodes) == len(E.postorder([new["r3"]]))
+    # the unchanged parameter leaf is the row's own node, the changed ones are new
+    assert [n for n in nodes if n.op == "param"][0] is \
+        [n for n in E.postorder([rows["r3"]]) if n.op == "param"][0]
+    # a row whose substitution folds differently is not rebuilt alike
+    other = E.substitute([rows["r2"]], lambda n: E.const(0.0) if n.op == "sym" and
+                         n.value.endswith(".b") else None)[0]
+    assert not K._built_alike(build, names["r2"], old2, other, [])
