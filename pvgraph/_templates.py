@@ -170,8 +170,9 @@ class Template:
 
     def _builder(self):
         """A generated function ``(path, leaf, registry) -> (residuals, observed expressions,
-        event conditions, each residual's nodes in post-order)`` building the template's graphs for the instance at ``path``: one
-        statement per node, leaves named after ``path`` (parameter leaves from ``leaf``)."""
+        event conditions, each residual's nodes in post-order)`` building the template's
+        graphs for the instance at ``path``: one statement per node, leaves named after
+        ``path`` (parameter leaves from ``leaf``)."""
         head = self.path + "."
         num: dict[int, str] = {}
         kept = []

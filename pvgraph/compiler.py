@@ -30,6 +30,7 @@ alias elimination, each volume contributes its own flow unknown, and the DAE sta
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import zlib
 from dataclasses import dataclass
@@ -49,6 +50,7 @@ __all__ = ["compile_circuit", "VarInfo"]
 
 MAX_AFFINE_NODES = 40  # larger expressions are not tested for the affine alias form
 MAX_BUILDER_NODES = 400  # rows substituted by a generated builder have at most these nodes
+_PARAMETRIC = object()   # a provenance key whose rows' affine forms depend on parameters
 NAMES_IN_MESSAGES = 12
 
 
@@ -123,28 +125,31 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     # rows built from a template: id -> (row, key, names); rows of one key are one graph with
     # their names exchanged (see _Provenance)
     prov = _Provenance()
-    for path, comp in leaves:
-        _declare_variables(path, comp, infos, registry)
-        trace.where = f"{type(comp).__name__}.equations of {path!r}"
-        with trace:
-            residuals, v, leaves_read = templates.trace(comp, path, registry, trace)
-        found.extend(leaves_read)
-        if templates.last is not None:
-            tpl, at = templates.last
-            conditions = [ev.condition for ev in v.events]
-            nodes = tpl.last_nodes or ()
-            for k, (r, names) in enumerate(zip(list(residuals) + conditions, tpl.row_names(at))):
-                prov.add(r, (tpl, k), names, nodes[k] if k < len(nodes) else None)
-        for k, r in enumerate(residuals):
-            equations.append(_Equation(r, path, f"{path} equation {k + 1} "
-                                                f"({type(comp).__name__})"))
-        for name, obs in v.observed.items():
-            observed[f"{path}.{name}"] = (obs.expr, obs.unit, obs.description)
-        for ev in v.events:
-            events.append((path, ev))
-        for mname, mstart in type(comp).modes.items():
-            mode_names.append(f"{path}.#{mname}")
-            mode_start.append(float(mstart))
+    # the math functions stay symbolic over the whole loop (each component's trace then only
+    # counts itself in and out instead of patching and restoring them)
+    with _symbolic_math():
+        for path, comp in leaves:
+            _declare_variables(path, comp, infos, registry)
+            trace.where = f"{type(comp).__name__}.equations of {path!r}"
+            with trace:
+                residuals, v, leaves_read = templates.trace(comp, path, registry, trace)
+            found.extend(leaves_read)
+            if templates.last is not None:
+                tpl, at = templates.last
+                rows = list(residuals) + [ev.condition for ev in v.events]
+                nodes = tpl.last_nodes or ()
+                for k, (r, names) in enumerate(zip(rows, tpl.row_names(at))):
+                    prov.add(r, (tpl, k), names, nodes[k] if k < len(nodes) else None)
+            for k, r in enumerate(residuals):
+                equations.append(_Equation(r, path, f"{path} equation {k + 1} "
+                                                    f"({type(comp).__name__})"))
+            for name, obs in v.observed.items():
+                observed[f"{path}.{name}"] = (obs.expr, obs.unit, obs.description)
+            for ev in v.events:
+                events.append((path, ev))
+            for mname, mstart in type(comp).modes.items():
+                mode_names.append(f"{path}.#{mname}")
+                mode_start.append(float(mstart))
 
     del templates
     n_component = len(equations)
@@ -184,6 +189,16 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
 
 
 # 1. flatten ---------------------------------------------------------------------------------
+
+@contextlib.contextmanager
+def _symbolic_math():
+    """The ``math`` functions of the expression vocabulary symbolic (as while tracing)."""
+    E._patch_math()
+    try:
+        yield
+    finally:
+        E._unpatch_math()
+
 
 def _flatten(circuit: Circuit) -> list[tuple[str, Component]]:
     out = []
@@ -783,15 +798,33 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
         lv = E.leaves(expr, ("sym", "der"))
         return {nm for op, nm in lv if op == "sym"}, {nm for op, nm in lv if op == "der"}
 
-    not_affine: set = set()   # provenance keys whose rows are not affine
+    eliminated = subs.keys()
+    # per provenance key: its rows are not affine (None), or their affine form with float
+    # coefficients and constant, by the places of the names (the key's classes); other forms
+    # are found row by row
+    forms: dict[int, object] = {}
 
     def affine(expr):
         p = prov.get(expr) if prov is not None else None
-        if p is not None and p[0] in not_affine:
+        if p is None:
+            return _affine(expr)
+        key, names = p
+        known = forms.get(key, False)
+        if known is None:
             return None
+        if known is not False and known is not _PARAMETRIC:
+            terms, k = known
+            return {names[c]: w for c, w in terms}, k
         form = _affine(expr)
-        if form is None and p is not None:
-            not_affine.add(p[0])
+        if known is False:
+            if form is None:
+                forms[key] = None
+            elif form[1].__class__ is float and all(w.__class__ is float
+                                                    for w in form[0].values()):
+                place = {nm: c for c, nm in enumerate(names)}
+                forms[key] = ([(place[v], w) for v, w in form[0].items()], form[1])
+            else:
+                forms[key] = _PARAMETRIC
         return form
 
     def plain(syms, ders):
@@ -815,7 +848,7 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
         keep = []
         for item in remaining:
             eq, expr, syms, ders, fresh, exact = item
-            if any(nm in subs for nm in syms) or any(nm in subs for nm in ders):
+            if not (eliminated.isdisjoint(syms) and eliminated.isdisjoint(ders)):
                 expr, syms, ders, still = substituted(expr, syms, ders)
                 exact = exact and still
                 item[1], item[2], item[3], item[5], fresh = expr, syms, ders, exact, True
@@ -877,7 +910,7 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
         subs[name] = resolve(name)
     out = []
     for eq, expr, syms, ders, _, exact in remaining:
-        if any(nm in subs for nm in syms) or any(nm in subs for nm in ders):
+        if not (eliminated.isdisjoint(syms) and eliminated.isdisjoint(ders)):
             expr, syms, ders, still = substituted(expr, syms, ders)
             exact = exact and still
         out.append(_Equation(expr, eq.origin, eq.label))

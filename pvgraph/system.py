@@ -1025,6 +1025,13 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     # rows of one shape repeated often enough are evaluated as arrays over their instances
     # (templated from the traced rows directly); the others get straight-line code
     shape_cache: dict = {}
+    # what a name is to compiled_leaf: 1 an unknown, 2 a mode, 4 a parameter (summed)
+    category: dict[str, int] = dict.fromkeys(index, 1)
+    for nm in mode_index:
+        category[nm] = category.get(nm, 0) + 2
+    for nm in pindex:
+        category[nm] = category.get(nm, 0) + 4
+    category_of = category.get
 
     def shape_of(row):
         # rows of one provenance key and one kind of compiled leaf per name have one shape;
@@ -1033,7 +1040,7 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
         if p is None:
             return codegen.row_shape(row, compiled_leaf)
         key, names = p
-        kinds = tuple([(nm in index, nm in mode_index, nm in pindex) for nm in names])
+        kinds = tuple([category_of(nm, 0) for nm in names])
         hit = shape_cache.get((key, kinds))
         if hit is None:
             got = codegen.row_shape(row, compiled_leaf)
