@@ -95,6 +95,7 @@ class Template:
         self.verified = False
         self._build = self._found = self._classes = None
         self.last_nodes = None   # the nodes of each residual built last, in post-order
+        self.last_names = None   # (path, names) of the instance built last
         for node in self.order:
             if node.op in ("interp", "interp_d") or (not node.args and
                                                      node.op not in _TEMPLATE_LEAVES):
@@ -116,25 +117,55 @@ class Template:
             return path + nm[n:] if nm.startswith(head) else nm
         return name
 
+    def _prepare(self):
+        """The names an instance renames (by their tails after the template's path, in one
+        list, so that each instance makes each name once) and where each use takes them."""
+        head, n = self.path + ".", len(self.path)
+        tails: dict[str, int] = {}
+
+        def slot(nm):
+            """(index of the renamed name, None) or (None, the name kept as it is)."""
+            if not nm.startswith(head):
+                return None, nm
+            return tails.setdefault(nm[n:], len(tails)), None
+        self._reads = [(slot(f"{self.path}.{field}")[0], field, unit, desc)
+                       for field, _, unit, desc in self.reads]
+        self._structural = [(slot(f"{self.path}.{field}")[0], how)
+                            for field, how in self.structural]
+        self._found = [[(op,) + slot(nm) for op, nm in lv] for lv in self.found]
+        self._classes = []
+        for r in list(self.residuals) + [ev[1] for ev in self.events]:
+            names = {}
+            for node in E.postorder([r]):
+                if node.op in ("sym", "der", "param"):
+                    names[node.value] = None
+            self._classes.append([slot(nm) for nm in names])
+        self._slots = {nm: slot(nm) for nm in
+                       {node.value for node in self.order if node.op in ("sym", "der", "param")}}
+        self._tails = list(tails)
+
     def instantiate(self, comp, path, registry, trace, where):
         """``(residuals, traced, found)`` of ``comp`` at ``path`` from the template.
 
         Registers the parameters read (in ``registry``), their leaves and the structural ones
         (in ``trace``) as the trace of ``comp`` would.
         """
+        if self._build is None:
+            self._prepare()
+            self._build = self._builder()
+        names = [path + tail for tail in self._tails]
+        self.last_names = (path, names)
         params = comp.params
-        for field, kind, unit, desc in self.reads:
-            full = f"{path}.{field}"
+        for k, field, unit, desc in self._reads:
+            full = names[k]
             info = registry.get(full)
             if info is None:
                 info = registry[full] = ParameterInfo(full, _value(params, field), unit, desc,
                                                       path, field)
             info.in_equations = True
-        for field, how in self.structural:
-            trace.structural.setdefault(f"{path}.{field}", f"{how} in {where}")
-        if self._build is None:
-            self._build = self._builder()
-        residuals, obs_exprs, conditions, self.last_nodes = self._build(path, trace.leaf,
+        for k, how in self._structural:
+            trace.structural.setdefault(names[k], f"{how} in {where}")
+        residuals, obs_exprs, conditions, self.last_nodes = self._build(names, trace.leaf,
                                                                         registry)
         observed = {nm: Observed(e, unit, desc)
                     for (nm, _, unit, desc), e in zip(self.observed, obs_exprs)}
@@ -143,11 +174,7 @@ class Template:
                 enumerate(zip(self.events, conditions)):
             action = None if no_action else _LazyAction(comp, path, k)
             events.append(EventSpec(ev_name, cond, direction, action, terminal, at_start))
-        if self._found is None:    # (op, name suffix after the path, or the name itself)
-            head = self.path + "."
-            self._found = [[(op, nm[len(self.path):], None) if nm.startswith(head) else
-                            (op, None, nm) for op, nm in lv] for lv in self.found]
-        found = [[(op, path + tail if tail is not None else nm) for op, tail, nm in lv]
+        found = [[(op, names[k] if k is not None else nm) for op, k, nm in lv]
                  for lv in self._found]
         return residuals, _Traced(observed, events), found
 
@@ -156,32 +183,26 @@ class Template:
         derivative and parameter leaves (in the order first reached) for the instance at
         ``path``: two instances' residuals are the same graph with these names exchanged."""
         if self._classes is None:
-            head = self.path + "."
-            self._classes = []
-            for r in list(self.residuals) + [ev[1] for ev in self.events]:
-                names = {}
-                for node in E.postorder([r]):
-                    if node.op in ("sym", "der", "param"):
-                        names[node.value] = None
-                self._classes.append([(nm[len(self.path):], None) if nm.startswith(head) else
-                                      (None, nm) for nm in names])
-        return [tuple([path + tail if tail is not None else nm for tail, nm in cl])
+            self._prepare()
+        if self.last_names is not None and self.last_names[0] == path:
+            names = self.last_names[1]
+        else:
+            names = [path + tail for tail in self._tails]
+        return [tuple([names[k] if k is not None else nm for k, nm in cl])
                 for cl in self._classes]
 
     def _builder(self):
-        """A generated function ``(path, leaf, registry) -> (residuals, observed expressions,
+        """A generated function ``(names, leaf, registry) -> (residuals, observed expressions,
         event conditions, each residual's nodes in post-order)`` building the template's
-        graphs for the instance at ``path``: one statement per node, leaves named after
-        ``path`` (parameter leaves from ``leaf``)."""
-        head = self.path + "."
+        graphs for an instance: one statement per node, leaves named from the instance's
+        ``names`` (see :meth:`_prepare`; parameter leaves from ``leaf``)."""
         num: dict[int, str] = {}
         kept = []
-        lines = ["def build(path, leaf, registry):"]
+        lines = ["def build(N, leaf, registry):"]
 
         def named(nm):
-            if nm.startswith(head):
-                return f"path + {nm[len(self.path):]!r}"
-            return repr(nm)
+            k, kept_name = self._slots[nm]
+            return f"N[{k}]" if k is not None else repr(kept_name)
         for node in self.order:
             var = num[id(node)] = f"x{len(num)}"
             if id(node) in self.keep:
@@ -191,7 +212,7 @@ class Template:
             op = node.op
             if node.args:
                 args = "".join(num[id(a)] + ", " for a in node.args)
-                value = "" if node.value is None else f", V[{len(kept)}]"
+                value = "" if node.value is None else f", K[{len(kept)}]"
                 if node.value is not None:      # an operation's payload (not templated now)
                     kept.append(node.value)
                 lines.append(f"    {var} = X({op!r}, ({args}){value})")
@@ -199,7 +220,7 @@ class Template:
                 lines.append(f"    {var} = X({op!r}, (), {named(node.value)})")
             elif op == "param":
                 full = named(node.value)
-                lines.append(f"    _n = {full}\n    {var} = leaf(_n, registry[_n].value)")
+                lines.append(f"    {var} = leaf({full}, registry[{full}].value)")
             elif op == "const":
                 lines.append(f"    {var} = X('const', (), K[{len(kept)}].value)")
                 kept.append(node)
@@ -213,7 +234,7 @@ class Template:
                               for r in self.residuals) + ")"
         lines.append(f"    return ({tup(self.residuals)}, {tup([ob[1] for ob in self.observed])}, "
                      f"{tup([ev[1] for ev in self.events])}, {nodes})")
-        namespace = {"X": E.Expr, "K": kept, "V": kept}
+        namespace = {"X": E.Expr, "K": kept}
         exec(compile("\n".join(lines), f"<template of {self.cls.__name__}>", "exec"),
              namespace)  # noqa: S102 - generated from the template's graph
         return namespace["build"]
