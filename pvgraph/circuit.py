@@ -25,6 +25,8 @@ import re
 import warnings
 from collections import OrderedDict
 
+from pydantic import BaseModel
+
 from .component import Component, Port, PortRef
 from .errors import (CircuitError, ConnectionError_, ParameterError, PlausibilityWarning,
                      StructureError)
@@ -543,12 +545,19 @@ def _alike(comp):
     return None if frozen is None else (type(comp), frozen)
 
 
+_MODEL_FIELDS: dict = {}   # parameter model class -> its field names
+
+
 def _frozen(value):
-    from pydantic import BaseModel
     if isinstance(value, BaseModel):
-        out = [type(value)]
-        for name in type(value).model_fields:
-            item = _frozen(getattr(value, name))
+        cls = type(value)
+        names = _MODEL_FIELDS.get(cls)
+        if names is None:
+            names = _MODEL_FIELDS[cls] = tuple(cls.model_fields)
+        out = [cls]
+        for name in names:
+            item = getattr(value, name)
+            item = (float, repr(item)) if type(item) is float else _frozen(item)
             if item is None:
                 return None
             out.append((name, item))

@@ -30,6 +30,7 @@ alias elimination, each volume contributes its own flow unknown, and the DAE sta
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import zlib
 from dataclasses import dataclass
@@ -40,6 +41,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import maximum_bipartite_matching
 
 from . import expr as E
+from ._templates import Templates
 from .circuit import Circuit
 from .component import SIGNAL, Component
 from .errors import CircuitError, ConnectionError_, StructureError
@@ -47,6 +49,8 @@ from .errors import CircuitError, ConnectionError_, StructureError
 __all__ = ["compile_circuit", "VarInfo"]
 
 MAX_AFFINE_NODES = 40  # larger expressions are not tested for the affine alias form
+MAX_BUILDER_NODES = 400  # rows substituted by a generated builder have at most these nodes
+_PARAMETRIC = object()   # a provenance key whose rows' affine forms depend on parameters
 NAMES_IN_MESSAGES = 12
 
 
@@ -116,24 +120,45 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
 
     registry: dict = {}   # parameter name -> ParameterInfo, in the order first read
     trace = E.ParameterTrace({})
-    for path, comp in leaves:
-        _declare_variables(path, comp, infos, registry)
-        trace.where = f"{type(comp).__name__}.equations of {path!r}"
-        with trace:
-            residuals, v = comp.trace(path, registry)
-        for k, r in enumerate(residuals):
-            equations.append(_Equation(r, path, f"{path} equation {k + 1} "
-                                                f"({type(comp).__name__})"))
-        for name, obs in v.observed.items():
-            observed[f"{path}.{name}"] = (obs.expr, obs.unit, obs.description)
-        for ev in v.events:
-            events.append((path, ev))
-        for mname, mstart in type(comp).modes.items():
-            mode_names.append(f"{path}.#{mname}")
-            mode_start.append(float(mstart))
+    templates = Templates()
+    found = []
+    # rows built from a template: id -> (row, key, names); rows of one key are one graph with
+    # their names exchanged (see _Provenance)
+    prov = _Provenance()
+    # the math functions stay symbolic over the whole loop (each component's trace then only
+    # counts itself in and out instead of patching and restoring them)
+    with _symbolic_math():
+        for path, comp in leaves:
+            _declare_variables(path, comp, infos, registry)
+            trace.where = f"{type(comp).__name__}.equations of {path!r}"
+            with trace:
+                residuals, v, leaves_read = templates.trace(comp, path, registry, trace)
+            found.extend(leaves_read)
+            if templates.last is not None:
+                tpl, at = templates.last
+                rows = list(residuals) + [ev.condition for ev in v.events]
+                nodes = tpl.last_nodes or ()
+                for k, (r, names) in enumerate(zip(rows, tpl.row_names(at))):
+                    prov.add(r, (tpl, k), names, nodes[k] if k < len(nodes) else None)
+            for k, r in enumerate(residuals):
+                equations.append(_Equation(r, path, f"{path} equation {k + 1} "
+                                                    f"({type(comp).__name__})"))
+            for name, obs in v.observed.items():
+                observed[f"{path}.{name}"] = (obs.expr, obs.unit, obs.description)
+            for ev in v.events:
+                events.append((path, ev))
+            for mname, mstart in type(comp).modes.items():
+                mode_names.append(f"{path}.#{mname}")
+                mode_start.append(float(mstart))
 
+    del templates
+    n_component = len(equations)
     equations.extend(_connection_equations(circuit, leaves, infos))
-    found = [E.leaves(eq.expr, ("sym", "der")) for eq in equations]
+    for eq in equations[n_component:]:
+        got = _connection_key(eq.expr)
+        if got is not None:
+            prov.add(eq.expr, *got)
+    found.extend(E.leaves(eq.expr, ("sym", "der")) for eq in equations[len(found):])
     _check_symbols(equations, found, infos, set(mode_names))
 
     for name, info in registry.items():
@@ -144,7 +169,8 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     incidence = None
     if eliminate_aliases:
         incidence = []
-        equations = _eliminate_aliases(equations, infos, subs, trace.values, found, incidence)
+        equations = _eliminate_aliases(equations, infos, subs, trace.values, found, incidence,
+                                       prov)
     del found
 
     from .index_reduction import given_starts, reduce_index
@@ -155,7 +181,7 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     from .system import build_system
     system = build_system(circuit.name, equations, infos, subs, observed, events, mode_names,
                           mode_start, parameters=registry, tables=trace.tables,
-                          array_rows=array_rows)
+                          array_rows=array_rows, provenance=prov)
     system._circuit = circuit
     system._components = dict(leaves)
     system._models = {path: comp.params for path, comp in leaves}
@@ -163,6 +189,16 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
 
 
 # 1. flatten ---------------------------------------------------------------------------------
+
+@contextlib.contextmanager
+def _symbolic_math():
+    """The ``math`` functions of the expression vocabulary symbolic (as while tracing)."""
+    E._patch_math()
+    try:
+        yield
+    finally:
+        E._unpatch_math()
+
 
 def _flatten(circuit: Circuit) -> list[tuple[str, Component]]:
     out = []
@@ -284,6 +320,26 @@ def _connection_equations(root, leaves, infos) -> list[_Equation]:
     return equations
 
 
+def _connection_key(e):
+    """``(key, names)`` of a connection equation (``a - b``, or ``q1 + q2 + ... + qn`` summed
+    from the left) for :class:`_Provenance`, or None for another form."""
+    if e.op == "sub" and e.args[0].op == "sym" and e.args[1].op == "sym":
+        key, names = ("sub",), [e.args[0].value, e.args[1].value]
+    else:
+        names = []
+        while e.op == "add" and e.args[1].op == "sym":
+            names.append(e.args[1].value)
+            e = e.args[0]
+        if e.op != "sym" or not names:
+            return None
+        names.append(e.value)
+        names.reverse()
+        key = ("sum", len(names))
+    if len(set(names)) != len(names):
+        return None
+    return ("connection",) + key, tuple(names)
+
+
 def _node_label(labels):
     """``node{a.p, b.p, ...}`` naming a connection set; a wide one by a few ports and a count
     (every equation of the set carries the label)."""
@@ -338,52 +394,84 @@ def _affine(e: E.Expr):
         if a.op == "sym" and b.op == "sym" and a.value != b.value and "#" not in a.value \
                 and "#" not in b.value:
             return {a.value: 1.0, b.value: 1.0 if e.op == "add" else -1.0}, 0.0
-    nodes = E.postorder([e], MAX_AFFINE_NODES)
-    if nodes is None:
-        return None
+    # the nodes of :func:`~pvgraph.expr.postorder`, each given its form as soon as it is
+    # reached: the first operation that is not affine (or the node past MAX_AFFINE_NODES)
+    # ends the walk
     form: dict[int, tuple[dict, object]] = {}
-    for n in nodes:
-        op = n.op
-        if op == "const":
-            form[id(n)] = ({}, n.value)
-        elif op == "param":
-            form[id(n)] = ({}, n)
-        elif op == "sym" and "#" not in n.value:
-            form[id(n)] = ({n.value: 1.0}, 0.0)
-        elif op in E.LEAVES:
+    if not e.args:
+        f = _affine_form(e, form)
+        if f is None:
             return None
-        else:
-            kids = [form[id(a)] for a in n.args]
-            if all(not c for c, _ in kids):
-                form[id(n)] = ({}, n)  # parametric: a number for any one run
-            elif op in ("add", "sub"):
-                (ca, ka), (cb, kb) = kids
-                sub = op == "sub"
-                c = dict(ca)
-                for v, w in cb.items():
-                    w = _kneg(w) if sub else w
-                    c[v] = _kadd(c[v], w) if v in c else w
-                form[id(n)] = (c, _kadd(ka, _kneg(kb) if sub else kb))
-            elif op == "neg":
-                ca, ka = kids[0]
-                form[id(n)] = ({v: _kneg(w) for v, w in ca.items()}, _kneg(ka))
-            elif op == "mul":
-                (ca, ka), (cb, kb) = kids
-                if ca and cb:
-                    return None
-                if ca:
-                    form[id(n)] = ({v: _kmul(w, kb) for v, w in ca.items()}, _kmul(ka, kb))
-                else:
-                    form[id(n)] = ({v: _kmul(w, ka) for v, w in cb.items()}, _kmul(ka, kb))
-            elif op == "div":
-                (ca, ka), (cb, kb) = kids
-                if cb or (isinstance(kb, float) and kb == 0.0):
-                    return None
-                form[id(n)] = ({v: _kdiv(w, kb) for v, w in ca.items()}, _kdiv(ka, kb))
+        form[id(e)] = f
+    else:
+        seen = {id(e)}
+        stack = [(e, iter(e.args))]
+        while stack:
+            node, children = stack[-1]
+            for a in children:
+                if id(a) not in seen:
+                    seen.add(id(a))
+                    if len(seen) > MAX_AFFINE_NODES:
+                        return None
+                    if a.args:
+                        stack.append((a, iter(a.args)))
+                        break
+                    f = _affine_form(a, form)
+                    if f is None:
+                        return None
+                    form[id(a)] = f
             else:
-                return None
+                stack.pop()
+                f = _affine_form(node, form)
+                if f is None:
+                    return None
+                form[id(node)] = f
     coeffs, k = form[id(e)]
     return {v: w for v, w in coeffs.items() if not _kzero(w)}, k
+
+
+def _affine_form(n, form):
+    """The affine form ``(coeffs, const)`` of node ``n`` from its children's (in ``form``),
+    or None where it is not affine."""
+    op = n.op
+    if op == "const":
+        return ({}, n.value)
+    elif op == "param":
+        return ({}, n)
+    elif op == "sym" and "#" not in n.value:
+        return ({n.value: 1.0}, 0.0)
+    elif op in E.LEAVES:
+        return None
+    else:
+        kids = [form[id(a)] for a in n.args]
+        if all(not c for c, _ in kids):
+            return ({}, n)  # parametric: a number for any one run
+        elif op in ("add", "sub"):
+            (ca, ka), (cb, kb) = kids
+            sub = op == "sub"
+            c = dict(ca)
+            for v, w in cb.items():
+                w = _kneg(w) if sub else w
+                c[v] = _kadd(c[v], w) if v in c else w
+            return (c, _kadd(ka, _kneg(kb) if sub else kb))
+        elif op == "neg":
+            ca, ka = kids[0]
+            return ({v: _kneg(w) for v, w in ca.items()}, _kneg(ka))
+        elif op == "mul":
+            (ca, ka), (cb, kb) = kids
+            if ca and cb:
+                return None
+            if ca:
+                return ({v: _kmul(w, kb) for v, w in ca.items()}, _kmul(ka, kb))
+            else:
+                return ({v: _kmul(w, ka) for v, w in cb.items()}, _kmul(ka, kb))
+        elif op == "div":
+            (ca, ka), (cb, kb) = kids
+            if cb or (isinstance(kb, float) and kb == 0.0):
+                return None
+            return ({v: _kdiv(w, kb) for v, w in ca.items()}, _kdiv(ka, kb))
+        else:
+            return None
 
 
 # arithmetic on affine coefficients: floats, or parametric expressions where parameters enter
@@ -444,7 +532,214 @@ def _kexpr(x):
     return x if isinstance(x, E.Expr) else E.const(x)
 
 
-def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=None):
+class _Provenance:
+    """Rows known to be one graph up to the names of their leaves.
+
+    A row built from a component template has the key ``(template, residual number)`` and the
+    distinct names of its variable, derivative and parameter leaves, in the template's order
+    (its classes). Substituting aliases into such a row gives a row whose graph follows from
+    its key and the substitution's pattern alone (per class: kept, fixed, or expressed in a
+    target, with the coefficient and offset as numbers, or the very expressions, and which
+    classes share a target): the folding arithmetic looks at operations, constants and node
+    identity, never at names. So rows of one key have one affine form (or none) and one row
+    shape, computed once per key, and a substitution of one pattern into rows of one key is
+    a generated builder (made from the second such row, checked against the third) that
+    creates the changed nodes and reuses the row's unchanged ones, as
+    :func:`pvgraph.expr.substitute` would.
+    """
+
+    def __init__(self):
+        self.rows: dict[int, tuple] = {}   # id(row) -> (row, key number, names, nodes or None)
+        self.keys: dict = {}
+        self._in_token: dict[int, tuple] = {}
+        self._builders: dict[int, object] = {}   # key number -> builder, candidate or False
+
+    def number(self, key) -> int:
+        k = self.keys.get(key)
+        if k is None:
+            k = self.keys[key] = len(self.keys)
+        return k
+
+    def add(self, row, key, names, nodes=None):
+        self.rows[id(row)] = (row, self.number(key), names, nodes)
+
+    def forget_nodes(self):
+        """Drop the rows' node lists (needed while substituting only)."""
+        for k, p in self.rows.items():
+            if p[3] is not None:
+                self.rows[k] = p[:3] + (None,)
+
+    def get(self, row):
+        """``(key number, names)`` of ``row``, or None."""
+        p = self.rows.get(id(row))
+        return None if p is None or p[0] is not row else p[1:3]
+
+    def substitute(self, old, subs, resolve):
+        """``old`` with the aliases of ``subs`` substituted (as :func:`_apply` does), recorded
+        with its key if ``old``'s is known."""
+        p = self.rows.get(id(old))
+        if p is None or p[0] is not old:
+            return _apply(old, subs, resolve)
+        _, key, names, old_nodes = p
+        pattern = []
+        cls: dict[str, int] = {}
+        out = []
+        tokens = []
+
+        def place(nm):
+            c = cls.get(nm)
+            if c is None:
+                c = cls[nm] = len(out)
+                out.append(nm)
+            return c
+        for nm in names:
+            if nm not in subs:
+                pattern.append(("keep", place(nm)))
+                continue
+            coef, target, off = resolve(nm)
+            # the parameters a parametric coefficient or offset brings in are names too
+            brought = []
+            for x in (coef, off):
+                if x.__class__ is not float:
+                    tokens.append(x)
+                    brought.extend(place(q) for q in self._params(x))
+            how = (_token(coef), _token(off), tuple(brought))
+            pattern.append(("fix",) + how if target is None else ("sub", place(target)) + how)
+        names = tuple(out)
+        k = self.number((key, tuple(pattern)))
+        del self.rows[id(old)]      # an equation is substituted into once per pass
+        state = self._builders.get(k)
+        if callable(state):
+            if old_nodes is None:
+                old_nodes = E.postorder([old])
+            new, nodes = state(names, old_nodes)
+            self.rows[id(new)] = (new, k, names, nodes)
+            return new
+        new = _apply(old, subs, resolve)
+        self.rows[id(new)] = (new, k, names, None)
+        # the first row of a key is substituted as it is; the second gives a candidate
+        # builder (a key met once costs no builder), the third checks it
+        if state is None:
+            self._builders[k] = 1
+            return new
+        if state is False:
+            return new
+        if old_nodes is None:
+            old_nodes = E.postorder([old])
+        if state == 1:
+            fn = None
+            if len(old_nodes) <= MAX_BUILDER_NODES:
+                fn = _derived_builder(old_nodes, new, names, tokens)
+            self._builders[k] = _Candidate(fn) if fn is not None else False
+        elif _built_alike(state.fn, names, old_nodes, new, tokens):
+            self._builders[k] = state.fn
+        else:
+            self._builders[k] = False
+        return new
+
+    def _params(self, x):
+        """The names of the parameters in the parametric expression ``x`` (kept per node)."""
+        got = self._in_token.get(id(x))
+        if got is None or got[0] is not x:
+            got = self._in_token[id(x)] = (x, [nm for _, nm in E.leaves(x, ("param",))])
+        return got[1]
+
+
+class _Candidate:
+    """A builder made from one row of a key, not yet checked against another."""
+
+    __slots__ = ("fn",)
+
+    def __init__(self, fn):
+        self.fn = fn
+
+
+def _shared_nodes(tokens) -> set:
+    """Nodes every row of a key holds as the same objects: the coefficients and offsets the
+    substitution puts in (and what they hold) and the folding's constants."""
+    ids = {id(E.ZERO), id(E.ONE)}
+    if tokens:
+        ids.update(id(n) for n in E.postorder(tokens))
+    return ids
+
+
+def _derived_builder(old_nodes, new, names, tokens):
+    """A generated ``(names, old nodes) -> (row, its nodes in post-order)`` rebuilding ``new``
+    (``old`` substituted) for another row of the same key, or None where ``new`` holds a
+    node it cannot place."""
+    old_pos = {id(n): j for j, n in enumerate(old_nodes)}
+    shared = _shared_nodes(tokens)
+    cls = {nm: c for c, nm in enumerate(names)}
+    order = E.postorder([new])
+    num: dict[int, str] = {}
+    kept: list = []
+    lines = ["def build(names, old):"]
+    for i, node in enumerate(order):
+        var = num[id(node)] = f"n{i}"
+        if id(node) in old_pos:
+            lines.append(f"    {var} = old[{old_pos[id(node)]}]")
+        elif id(node) in shared:
+            lines.append(f"    {var} = K[{len(kept)}]")
+            kept.append(node)
+        elif node.args:
+            args = "".join(num[id(a)] + ", " for a in node.args)
+            value = ""
+            if node.value is not None:
+                value = f", K[{len(kept)}]"
+                kept.append(node.value)
+            lines.append(f"    {var} = X({node.op!r}, ({args}){value})")
+        elif node.op in ("sym", "der") and node.value in cls:
+            lines.append(f"    {var} = X({node.op!r}, (), names[{cls[node.value]}])")
+        elif node.op == "const":
+            lines.append(f"    {var} = X('const', (), K[{len(kept)}])")
+            kept.append(node.value)
+        elif node.op == "time":
+            lines.append(f"    {var} = X('time', (), None)")
+        else:
+            return None
+    lines.append(f"    return n{len(order) - 1}, [{', '.join(num[id(n)] for n in order)}]")
+    namespace = {"X": E.Expr, "K": kept}
+    exec(compile("\n".join(lines), "<substitution builder>", "exec"),  # noqa: S102
+         namespace)   # generated from the graph of a substituted row
+    return namespace["build"]
+
+
+def _built_alike(build, names, old_nodes, new, tokens) -> bool:
+    """True if ``build`` gives ``new`` (``old`` substituted, by :func:`_apply`): the same
+    operations, payloads and children node for node, the old and shared nodes themselves and
+    fresh nodes elsewhere."""
+    got, got_nodes = build(names, old_nodes)
+    want = E.postorder([new])
+    if len(want) != len(got_nodes) or got is not got_nodes[-1]:
+        return False
+    old_ids = {id(n) for n in old_nodes} | _shared_nodes(tokens)
+    pos_w = {id(n): i for i, n in enumerate(want)}
+    pos_g = {id(n): i for i, n in enumerate(got_nodes)}
+    if len(pos_g) != len(got_nodes):
+        return False
+    for w, g in zip(want, got_nodes):
+        if id(w) in old_ids:
+            if g is not w:
+                return False
+            continue
+        if g is w or id(g) in old_ids or w.op != g.op or len(w.args) != len(g.args):
+            return False
+        if w.args:
+            if w.value is not g.value or [pos_w[id(a)] for a in w.args] != \
+                    [pos_g[id(a)] for a in g.args]:
+                return False
+        elif repr(w.value) != repr(g.value):
+            return False
+    return True
+
+
+def _token(x):
+    """A coefficient or offset in a substitution pattern: a float by its value, a parametric
+    expression by identity (the node the substitution puts in)."""
+    return repr(x) if x.__class__ is float else x
+
+
+def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=None, prov=None):
     """Remove unknowns defined by affine one- and two-variable equations (in place on subs).
 
     The unknown removed must have a constant coefficient, so that no parameter value can make
@@ -481,7 +776,8 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
         reads, and whether those are exact. An unknown expressed in another maps its leaf
         onto that one's; one fixed to a value (or a vanishing coefficient) can fold other
         terms away: the names are then a superset (read exactly where needed)."""
-        expr = _apply(expr, subs, resolve)
+        expr = _apply(expr, subs, resolve) if prov is None else \
+            prov.substitute(expr, subs, resolve)
         exact = True
         out = []
         for group in (syms, ders):
@@ -501,6 +797,35 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
     def read(expr):
         lv = E.leaves(expr, ("sym", "der"))
         return {nm for op, nm in lv if op == "sym"}, {nm for op, nm in lv if op == "der"}
+
+    eliminated = subs.keys()
+    # per provenance key: its rows are not affine (None), or their affine form with float
+    # coefficients and constant, by the places of the names (the key's classes); other forms
+    # are found row by row
+    forms: dict[int, object] = {}
+
+    def affine(expr):
+        p = prov.get(expr) if prov is not None else None
+        if p is None:
+            return _affine(expr)
+        key, names = p
+        known = forms.get(key, False)
+        if known is None:
+            return None
+        if known is not False and known is not _PARAMETRIC:
+            terms, k = known
+            return {names[c]: w for c, w in terms}, k
+        form = _affine(expr)
+        if known is False:
+            if form is None:
+                forms[key] = None
+            elif form[1].__class__ is float and all(w.__class__ is float
+                                                    for w in form[0].values()):
+                place = {nm: c for c, nm in enumerate(names)}
+                forms[key] = ([(place[v], w) for v, w in form[0].items()], form[1])
+            else:
+                forms[key] = _PARAMETRIC
+        return form
 
     def plain(syms, ders):
         """False where :func:`_affine` cannot hold: a derivative or a mode is read."""
@@ -523,7 +848,7 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
         keep = []
         for item in remaining:
             eq, expr, syms, ders, fresh, exact = item
-            if any(nm in subs for nm in syms) or any(nm in subs for nm in ders):
+            if not (eliminated.isdisjoint(syms) and eliminated.isdisjoint(ders)):
                 expr, syms, ders, still = substituted(expr, syms, ders)
                 exact = exact and still
                 item[1], item[2], item[3], item[5], fresh = expr, syms, ders, exact, True
@@ -534,7 +859,7 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
             if not exact and not plain(syms, ders):   # a superset: the exact names decide
                 syms, ders = read(expr)
                 item[2], item[3], item[5] = syms, ders, True
-            form = _affine(expr) if plain(syms, ders) else None
+            form = affine(expr) if plain(syms, ders) else None
             if form is None:
                 keep.append(item)
                 continue
@@ -585,12 +910,14 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
         subs[name] = resolve(name)
     out = []
     for eq, expr, syms, ders, _, exact in remaining:
-        if any(nm in subs for nm in syms) or any(nm in subs for nm in ders):
+        if not (eliminated.isdisjoint(syms) and eliminated.isdisjoint(ders)):
             expr, syms, ders, still = substituted(expr, syms, ders)
             exact = exact and still
         out.append(_Equation(expr, eq.origin, eq.label))
         if incidence is not None:
             incidence.append((syms, ders) if exact else read(expr))
+    if prov is not None:
+        prov.forget_nodes()
     return out
 
 
@@ -607,6 +934,19 @@ def _set_start(infos, elim, keep, coef, off):
     ie.start = coef * ik.start + off
 
 
+def _unit(coef) -> bool:
+    """True for the float coefficients with which ``coef * leaf (+ 0.0)`` folds to the leaf
+    or its negation."""
+    return coef.__class__ is float and (coef == 1.0 or coef == -1.0)
+
+
+def _renamed(op, target, coef):
+    """``coef * leaf`` for a coefficient ``_unit`` accepts, as the folding arithmetic builds
+    it (the leaf, or ``neg`` of it)."""
+    node = E.Expr(op, (), target)
+    return node if coef == 1.0 else E.Expr("neg", (node,))
+
+
 def _apply(e, subs, resolve):
     if not subs:
         return e
@@ -616,11 +956,15 @@ def _apply(e, subs, resolve):
             coef, target, off = resolve(node.value)
             if target is None:
                 return _kexpr(off)
+            if _unit(coef) and off.__class__ is float and off == 0.0:
+                return _renamed("sym", target, coef)
             return _kexpr(coef) * E.Expr("sym", (), target) + off
         if node.op == "der" and node.value in subs:
             coef, target, _ = resolve(node.value)
             if target is None or _kzero(coef):
                 return E.ZERO
+            if _unit(coef):
+                return _renamed("der", target, coef)
             return _kexpr(coef) * E.Expr("der", (), target)
         return None
 

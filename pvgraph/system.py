@@ -1049,7 +1049,7 @@ def _starts_of(comp, model) -> dict:
 
 
 def build_system(name, equations, infos, subs, observed, events, mode_names, mode_start,
-                 parameters=None, tables=(), array_rows=None):
+                 parameters=None, tables=(), array_rows=None, provenance=None):
     """Number the unknowns and parameters, differentiate, generate code, run the checks.
 
     ``parameters`` maps the names of the runtime parameters to their
@@ -1057,6 +1057,8 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     ``array_rows``: None evaluates row shapes repeated at least ``ARRAY_MIN_GROUP`` times as
     arrays in systems of at least ``ARRAY_MIN_ROWS`` rows; True does so for every shape shared
     by two rows or more; False never (straight-line code only).
+    ``provenance``: the compiler's record of rows that are one graph up to their names
+    (``get(row) -> (key, names)``), whose row shapes are then found once per key.
     """
     from .compiler import check_structure
 
@@ -1123,7 +1125,49 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
 
     # rows of one shape repeated often enough are evaluated as arrays over their instances
     # (templated from the traced rows directly); the others get straight-line code
-    groups, scalar_rows = _array_groups(raw, array_rows, compiled_leaf)
+    shape_cache: dict = {}
+    # what a name is to compiled_leaf: 1 an unknown, 2 a mode, 4 a parameter (summed)
+    category: dict[str, int] = dict.fromkeys(index, 1)
+    for nm in mode_index:
+        category[nm] = category.get(nm, 0) + 2
+    for nm in pindex:
+        category[nm] = category.get(nm, 0) + 4
+    category_of = category.get
+
+    def shape_of(row):
+        # rows of one provenance key and one kind of compiled leaf per name have one shape;
+        # their slots read the same names (by their place in the key's names)
+        p = provenance.get(row) if provenance is not None else None
+        if p is None:
+            return codegen.row_shape(row, compiled_leaf)
+        key, names = p
+        kinds = tuple([category_of(nm, 0) for nm in names])
+        hit = shape_cache.get((key, kinds))
+        if hit is None:
+            got = codegen.row_shape(row, compiled_leaf)
+            if got is None:
+                shape_cache[(key, kinds)] = (None, None)
+                return None
+            place = {}
+            for c, nm in enumerate(names):
+                if nm in index:
+                    place["y", index[nm]] = place["yp", index[nm]] = c
+                if nm in mode_index:
+                    place["mode", mode_index[nm]] = c
+                if nm in pindex:
+                    place["param", pindex[nm]] = c
+            shape_cache[(key, kinds)] = (got[0], {kind: [place[kind, v] for v in vals]
+                                                  for kind, vals in got[1].items()})
+            return got
+        shape, slots = hit
+        if shape is None:
+            return None
+        return shape, {"y": [index[names[c]] for c in slots["y"]],
+                       "yp": [index[names[c]] for c in slots["yp"]],
+                       "param": [pindex[names[c]] for c in slots["param"]],
+                       "mode": [mode_index[names[c]] for c in slots["mode"]]}
+
+    groups, scalar_rows = _array_groups(raw, array_rows, compiled_leaf, shape_of=shape_of)
     if groups:
         scalar_res = E.substitute([raw[i] for i in scalar_rows], leaf)
     else:
@@ -1163,7 +1207,8 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
 
     # events: repeated shapes as arrays too
     ev_raw = [ev.condition for _, ev in events]
-    ev_groups, ev_scalar = _array_groups(ev_raw, array_rows, compiled_leaf, len(raw))
+    ev_groups, ev_scalar = _array_groups(ev_raw, array_rows, compiled_leaf, len(raw),
+                                         shape_of=shape_of)
     ev_exprs = E.substitute([ev_raw[i] for i in ev_scalar], leaf) if ev_scalar else []
 
     # parametric subexpressions (constants and parameters only) are computed once per parameter
@@ -1366,10 +1411,11 @@ class _ArrayPart:
         self.uses_modes = any(g.index["mode"] for g in groups)
 
 
-def _array_groups(exprs, array_rows, leaf_of=None, n_rows=None):
+def _array_groups(exprs, array_rows, leaf_of=None, n_rows=None, shape_of=None):
     """Split rows into groups of one shape (evaluated as arrays) and the rest.
 
-    ``n_rows`` (default ``len(exprs)``) is the size of the system, for the automatic choice.
+    ``n_rows`` (default ``len(exprs)``) is the size of the system, for the automatic choice;
+    ``shape_of(row)`` gives :func:`pvgraph.codegen.row_shape` of a row (default: computed).
     """
     size = len(exprs) if n_rows is None else n_rows
     if not exprs or array_rows is False or (array_rows is None and size < ARRAY_MIN_ROWS):
@@ -1378,7 +1424,7 @@ def _array_groups(exprs, array_rows, leaf_of=None, n_rows=None):
     by_shape: dict = {}
     scalar = []
     for i, r in enumerate(exprs):
-        shape = codegen.row_shape(r, leaf_of)
+        shape = codegen.row_shape(r, leaf_of) if shape_of is None else shape_of(r)
         if shape is None:
             scalar.append(i)
             continue

@@ -109,8 +109,8 @@ def _incidence_of_alias_elimination(circuit):
     captured = {}
     original = K._eliminate_aliases
 
-    def spy(equations, infos, subs, values, found=None, incidence=None):
-        out = original(equations, infos, subs, values, found, incidence)
+    def spy(equations, infos, subs, values, found=None, incidence=None, prov=None):
+        out = original(equations, infos, subs, values, found, incidence, prov)
         captured["equations"], captured["incidence"] = out, incidence
         return out
 
