@@ -10,8 +10,13 @@
  *     k = 1, dgemv (row major, transposed) for k > 1;
  *   - the LU solve is scipy's LAPACK dgetrs (its pointer from scipy.linalg.cython_lapack);
  *   - x ** y of Python floats is the C library's pow, math.sqrt its sqrt.
- * The iteration matrix is evaluated and factorised by the Python code (a callback), which also
- * raises every error from the codes returned here.
+ * A dense iteration matrix of a compiled Jacobian (System.jacobian_dense) is evaluated by the
+ * compiled pv_jacobian, scattered into a zeroed column-major matrix as numpy's
+ * J[rows, cols] = values and factorised by scipy's LAPACK dgetrf (the routine scipy's getrf
+ * calls), as the Python code does. Anything else -- finite-difference or sparse matrices, and
+ * any matrix with a non-finite entry or a zero pivot (to report it) -- is evaluated and
+ * factorised by the Python code (a callback), which also raises every error from the codes
+ * returned here.
  */
 #include <math.h>
 #include <stdint.h>
@@ -55,6 +60,9 @@ typedef void (*dgemv32_fn)(int, int, int, int, double, const double *, int, cons
 typedef void (*dgetrs_fn)(char *, int *, int *, double *, int *, int *, double *, int *, int *);
 typedef int (*setup_fn)(double, double, double);
 typedef int (*solve_fn)(void);
+typedef int (*jac_fn)(double, const double *, const double *, const double *,
+                      const double *, const void *, double, double *);
+typedef void (*dgetrf_fn)(int *, int *, double *, int *, int *, int *);
 #define DOT_MAX_N 10000
 
 /* Keep in step with _State in cstep.py: 8-byte fields only. */
@@ -78,6 +86,12 @@ typedef struct {
     i64 fail_kind, fail_serial;
     double err_t, err_h;
     i64 err_count, err_status;
+    /* the dense setup in C (jac == NULL: by the Python callback) */
+    void *jac, *dgetrf;
+    const i64 *rows, *cols;
+    double *jout, *c_lu;
+    int *c_piv;
+    i64 nnz, c_setups;
 } pv_state;
 
 /* numpy's pairwise summation (loops_utils.h.src), 8 accumulators, blocks of 128 */
@@ -173,6 +187,27 @@ static int lu_solve(pv_state *s, double *x)
     return 0;
 }
 
+/* JacobianEvaluator.iteration_matrix (System.jacobian_dense) and LUSolver.factor for a
+   compiled Jacobian: 0, or -1 where the Python code must do it (a non-finite value, a zero
+   pivot: it evaluates the same matrix again and reports the failure) */
+static int dense_setup(pv_state *s, double tn, double cj)
+{
+    const i64 n = s->n, nnz = s->nnz;
+    double *a = s->c_lu, *v = s->jout;
+    ((jac_fn) s->jac)(tn, s->yy, s->yp, s->d, s->P, s->T, cj, v);
+    for (i64 k = 0; k < nnz; k++)
+        if (!isfinite(v[k])) return -1;
+    memset(a, 0, (size_t) (n * n) * sizeof(double));
+    for (i64 k = 0; k < nnz; k++) a[s->cols[k] * n + s->rows[k]] = v[k];
+    int ni = (int) n, info = 0;
+    ((dgetrf_fn) s->dgetrf)(&ni, &ni, a, &ni, s->c_piv, &info);
+    if (info != 0) return -1;
+    s->lu = a;
+    s->piv = s->c_piv;
+    s->c_setups++;
+    return 0;
+}
+
 /* IDAIntegrator._newton */
 static int newton(pv_state *s, double tn, i64 kk, double hh, double cj, const double *gamma)
 {
@@ -201,7 +236,8 @@ static int newton(pv_state *s, double tn, i64 kk, double hh, double cj, const do
             s->cjold = cj;
             s->ss = SS_FIRST_STEP;
             s->force_setup = 0;
-            int info = ((setup_fn) s->setup)(tn, cj, hh);
+            int info = s->jac != NULL ? dense_setup(s, tn, cj) : -1;
+            if (info != 0) info = ((setup_fn) s->setup)(tn, cj, hh);
             jcur = 1;
             cjratio = 1.0;
             if (info != 0) {
