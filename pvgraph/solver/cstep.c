@@ -62,6 +62,8 @@ typedef int (*setup_fn)(double, double, double);
 typedef int (*solve_fn)(void);
 typedef int (*jac_fn)(double, const double *, const double *, const double *,
                       const double *, const void *, double, double *);
+typedef int (*ev_fn)(double, const double *, const double *, const double *, const double *,
+                     const void *, double *);
 typedef void (*dgetrf_fn)(int *, int *, double *, int *, int *, int *);
 #define DOT_MAX_N 10000
 
@@ -92,6 +94,11 @@ typedef struct {
     double *jout, *c_lu;
     int *c_piv;
     i64 nnz, c_setups;
+    /* the event functions after a step (ev == NULL or g_old == NULL: not evaluated) */
+    void *ev;
+    const i64 *ev_idx;
+    double *ev_buf, *g_old, *g_new;
+    i64 ev_m, ev_state;
 } pv_state;
 
 /* numpy's pairwise summation (loops_utils.h.src), 8 accumulators, blocks of 128 */
@@ -416,6 +423,21 @@ static void complete_step(pv_state *s, i64 kk, double hh, i64 knew, double err_k
     set_weights(s, phi);
 }
 
+/* EventTracker.evaluate at the step's end (the compiled pv_events, entries ev_idx) into
+   g_new, and the test of EventTracker.crossings: ev_state 1 when no event function was zero
+   before the step and none has g_old * g_new <= 0 (no candidate), else 2 */
+static void events_after(pv_state *s)
+{
+    ((ev_fn) s->ev)(s->tn, s->yy, s->yp, s->d, s->P, s->T, s->ev_buf);
+    int quiet = 1;
+    for (i64 j = 0; j < s->ev_m; j++) {
+        double g = s->ev_buf[s->ev_idx[j]], o = s->g_old[j];
+        s->g_new[j] = g;
+        if (o == 0.0 || o * g <= 0.0) quiet = 0;
+    }
+    s->ev_state = quiet ? 1 : 2;
+}
+
 /* IDAIntegrator.step */
 int pv_step(pv_state *s)
 {
@@ -423,6 +445,7 @@ int pv_step(pv_state *s)
     double *phi = s->phi;
     const double saved_t = s->tn;
     double hh = s->hh;
+    s->ev_state = 0;
     if ((saved_t + hh - s->t_bound) * hh > 0.0) {
         double hh_new = (s->t_bound - saved_t) * (1.0 - 4.0 * UROUND);
         if (s->nst_restart == 0) {
@@ -557,5 +580,6 @@ int pv_step(pv_state *s)
     s->t_old = saved_t;
     s->tn = tn;
     complete_step(s, kk, hh, knew, err_k, err_km1, nef + ncf > 0);
+    if (s->ev != NULL && s->g_old != NULL) events_after(s);
     return STEP_OK;
 }

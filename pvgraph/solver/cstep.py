@@ -69,7 +69,9 @@ class _State(ctypes.Structure):
         + [(k, _dbl) for k in ("err_t", "err_h")]
         + [(k, _i64) for k in ("err_count", "err_status")]
         + [(k, _vp) for k in ("jac", "dgetrf", "rows", "cols", "jout", "c_lu", "c_piv")]
-        + [(k, _i64) for k in ("nnz", "c_setups")])
+        + [(k, _i64) for k in ("nnz", "c_setups")]
+        + [(k, _vp) for k in ("ev", "ev_idx", "ev_buf", "g_old", "g_new")]
+        + [(k, _i64) for k in ("ev_m", "ev_state")])
 
 
 _SETUP = ctypes.CFUNCTYPE(ctypes.c_int, _dbl, _dbl, _dbl)
@@ -237,10 +239,12 @@ class CStepIntegrator(IDAIntegrator):
     and ``yp`` are fresh arrays after every step, as with the Python step.
 
     ``dense_setup`` (True): evaluate and factorise a dense compiled Jacobian in C; False
-    calls the Python code back for every iteration matrix.
+    calls the Python code back for every iteration matrix. ``step_events`` (True): evaluate
+    compiled event functions after each step in C (:meth:`watch_events`).
     """
 
     dense_setup = True
+    step_events = True
 
     tn, t_bound, hh, hused = _field("tn"), _field("t_bound"), _field("hh"), _field("hused")
     cj, cjlast, cjold, ck = _field("cj"), _field("cjlast"), _field("cjold"), _field("ck")
@@ -336,6 +340,7 @@ class CStepIntegrator(IDAIntegrator):
                 setattr(s, name, getattr(self, "_" + name).ctypes.data)
         self._cst = None
         self._sref = ctypes.byref(s)
+        self._tracker = None
 
     def _set_weights(self, y):
         """As IDAIntegrator's, into the arrays the kernel shares."""
@@ -389,6 +394,61 @@ class CStepIntegrator(IDAIntegrator):
             self._exc = exc
             return 3
 
+    def watch_events(self, tracker):
+        """Evaluate ``tracker``'s event functions at the end of every step in C, if they are
+        this system's compiled ones (:meth:`events_quiet` then tells the result); True if so.
+        """
+        from pvgraph.system import System
+        vector = tracker._vector
+        if not self.step_events or vector is None or not tracker.m:
+            return False
+        g_all, idx = vector
+        system = self._system
+        if (getattr(g_all, "__self__", None) is not system
+                or getattr(g_all, "__func__", None) is not System._c_events
+                or idx.min() < 0 or idx.max() >= min(len(system.event_specs),
+                                                     system._cmod.n_ev)):
+            return False
+        s = self._s
+        self._ev_idx = np.ascontiguousarray(idx, dtype=np.int64)
+        self._ev_buf = np.zeros(system._cmod.n_ev)
+        self._g_pair = (np.zeros(tracker.m), np.zeros(tracker.m))
+        self._g_addr = tuple(g.ctypes.data for g in self._g_pair)
+        s.ev = ctypes.cast(system._cmod.events, _vp).value
+        s.ev_idx, s.ev_buf = self._ev_idx.ctypes.data, self._ev_buf.ctypes.data
+        s.ev_m = tracker.m
+        s.g_old = s.g_new = None
+        self._g_bound = self._g_new = None
+        self._tracker = tracker
+        return True
+
+    def _bind_events(self, g):
+        """Let the kernel read the values before the step from ``g`` (the tracker's ``g``)."""
+        s = self._s
+        pair, addr = self._g_pair, self._g_addr
+        k = 0 if g is pair[1] else 1            # write into the other array of the pair
+        self._g_new = pair[k]
+        s.g_new = addr[k]
+        if g is pair[1 - k]:
+            s.g_old = addr[1 - k]
+        elif (isinstance(g, np.ndarray) and g.dtype == np.float64 and g.shape == pair[0].shape
+              and g.flags.c_contiguous):
+            s.g_old = g.ctypes.data
+        else:
+            s.g_old = None                        # not evaluated: the Python code does it
+        self._g_bound = g
+
+    def events_quiet(self):
+        """After a step: True if the kernel found no candidate crossing (see
+        ``EventTracker.crossings``); the tracker then holds the values at the step's end and
+        counts them as ``evaluate`` does. False: the Python code evaluates and decides."""
+        if self._s.ev_state != 1:
+            return False
+        tracker = self._tracker
+        tracker.nroot += tracker.m
+        tracker.g = self._g_new
+        return True
+
     def step(self):
         """Take one successful step towards ``t_bound``; raise SolverError on failure."""
         s = self._s
@@ -400,6 +460,9 @@ class CStepIntegrator(IDAIntegrator):
             s.T = ctypes.addressof(st.T)
         if system.modes:
             st.d[:len(system.modes)] = system.modes
+        tracker = self._tracker
+        if tracker is not None and tracker.g is not self._g_bound:
+            self._bind_events(tracker.g)
         serial = s.fail_serial
         code = self._kernel.step(self._sref)
         if s.c_setups:

@@ -354,3 +354,70 @@ def test_jacobian_failures_in_the_c_setup_are_the_pythons(cls, rate, h0, t_end, 
     t_fail = (h_fail - h0) / rate
     assert t_fail - 1e-3 * t_end <= ts[0] < t_fail + 0.1 * t_end
     assert c_steps["n"] > 10 and py_setups["n"] > 0
+
+
+# ---------------------------------------------------------------- events after the step in C
+
+class RelayParams(Params):
+    rate: float = Field(..., gt=0.0, description="Speed of the level [1/s]")
+
+
+class Relay(Component):
+    """A level x running up at ``rate`` to 1 and down to 0, switched by two events; its
+    square s = x^2 (an algebraic unknown). ``held`` is exactly zero while running down (its
+    sign at every step start comes from a probe inside the step)."""
+
+    Params = RelayParams
+    ports = {}
+    modes = {"down": 0.0}
+    variables = {"x": Variable("1", lambda p: 0.0, 1.0, "level"),
+                 "s": Variable("1", lambda p: 0.0, 1.0, "square of the level")}
+
+    def equations(self, v, p):
+        down = v.mode("down")
+
+        def to_down(modes):
+            modes["down"] = 1.0
+
+        def to_up(modes):
+            modes["down"] = 0.0
+
+        v.event("top", E.where(down < 0.5, v.x - 1.0, -1.0), direction=1, action=to_down)
+        v.event("bottom", E.where(down > 0.5, -v.x, -1.0), direction=1, action=to_up)
+        v.event("held", E.where(down > 0.5, 0.0, v.x - 2.0))
+        return [der(v.x) - p.rate * (1.0 - 2.0 * down), v.s - v.x * v.x]
+
+
+def test_events_after_the_step_in_c_with_mode_changes_and_zeros(monkeypatch):
+    # the events' values at the step's end come from C while no sign can have changed; a
+    # crossing, and a value exactly zero at the step start (every step while running down,
+    # and each restart: the fired event's sign is unknown) go to the Python code
+    calls = {"quiet": 0, "python": 0}
+    quiet = cstep.CStepIntegrator.events_quiet
+
+    def counted(self):
+        out = quiet(self)
+        calls["quiet" if out else "python"] += 1
+        return out
+
+    monkeypatch.setattr(cstep.CStepIntegrator, "events_quiet", counted)
+    c = Circuit("relay")
+    c.add("r", Relay(rate=1.0))
+    s = c.compile(backend="c")
+    t_eval = np.linspace(0.0, 4.5, 46)
+
+    def run(cs):
+        s.reset_modes()
+        return simulate(s, 4.5, rtol=1e-8, t_eval=t_eval, c_step=cs)
+
+    a, b = both(run)
+    assert_identical(a, b)
+    assert a._mode_log == b._mode_log
+    assert [e.name for e in b.events] == ["r.top", "r.bottom", "r.top", "r.bottom"]
+    # x = t up to 1, then 2 - t down to 0, ...: switches at t = 1, 2, 3, 4
+    assert [e.t for e in b.events] == pytest.approx([1.0, 2.0, 3.0, 4.0], abs=1e-8)
+    assert b["r.x"] == pytest.approx(np.abs(((t_eval + 1.0) % 2.0) - 1.0), abs=1e-7)
+    assert calls["quiet"] > 10 and calls["python"] > 10
+    # every internal step as output
+    a, b = both(lambda cs: (s.reset_modes(), simulate(s, 4.5, rtol=1e-6, c_step=cs))[1])
+    assert_identical(a, b)
