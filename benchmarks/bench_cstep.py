@@ -3,10 +3,11 @@
 For PVG 32 rig test 2 (1.01 s at rtol 1e-6 from the settled state, 91 unknowns, dense LU)
 and the machine cycle (7.5 s at rtol 1e-5, 184 unknowns, SuperLU solves called back from C),
 ``simulate`` on the same compiled C-route system with the Python step (``c_step=False``),
-the C step with the iteration matrix (Jacobian evaluation and LU factorisation) and the event
-functions after each step left to the Python code (C0: ``CStepIntegrator.dense_setup`` and
-``step_events`` off), and the C step as it runs by default (C1: a dense compiled Jacobian
-evaluated and factorised in C, compiled events evaluated after the step in C): a check that
+the C step with the iteration matrix (Jacobian evaluation and LU factorisation), the event
+functions after each step and the interpolation (outputs, event location) left to the Python
+code (C0: ``CStepIntegrator.dense_setup``, ``step_events`` and ``c_interpolate`` off), and the
+C step as it runs by default (C1: a dense compiled Jacobian evaluated and factorised in C,
+compiled events evaluated after the step and the interpolant in C): a check that
 all three take the same steps and give the same outputs (``np.array_equal``), interleaved
 repeats of the wall time (medians), and, from instrumented runs (the fastest of 3), the time
 inside ``step()`` per step and, from the median wall time, the time per step outside it
@@ -36,7 +37,7 @@ from bench_cbackend import machine_case, rig_case  # noqa: E402
 
 def with_c_step(sim, c_step, in_c=True):
     """``sim`` with ``c_step`` passed on to solve_dae; ``in_c=False``: the C step with the
-    iteration matrix from the Python code and the events evaluated by the Python code."""
+    iteration matrix, the events after each step and the interpolation by the Python code."""
     import pvgraph.solver as solver
     from pvgraph.solver.cstep import CStepIntegrator
     orig = solver.solve_dae
@@ -46,11 +47,13 @@ def with_c_step(sim, c_step, in_c=True):
             return orig(*a, c_step=c_step, **k)
         solver.solve_dae = patched
         CStepIntegrator.dense_setup = CStepIntegrator.step_events = in_c
+        CStepIntegrator.c_interpolate = in_c
         try:
             return sim(s)
         finally:
             solver.solve_dae = orig
             CStepIntegrator.dense_setup = CStepIntegrator.step_events = True
+            CStepIntegrator.c_interpolate = True
     return run
 
 
@@ -129,8 +132,9 @@ def main():
     if cstep.kernel() is None:
         sys.exit(f"the C step is not available: {cstep.kernel_error()}")
     rows = [run_case(*case(), args.repeats) for case in (rig_case, machine_case)]
-    print("\nsimulate with the Python step / the C step with J + LU and events by the Python "
-          "code (C0) / the C step with a dense J + LU and the events in C (C1)")
+    print("\nsimulate with the Python step / the C step with J + LU, events and interpolation "
+          "by the Python code (C0) / the C step with a dense J + LU, events and interpolation "
+          "in C (C1)")
     print("\n| circuit | unknowns | steps | nre | same steps and outputs | simulate Python / "
           "C0 / C1 [ms] | C0 / C1 | in step() per step, C0 / C1 [us] | outside step() per "
           "step, C0 / C1 [us] |")

@@ -583,3 +583,32 @@ int pv_step(pv_state *s)
     if (s->ev != NULL && s->g_old != NULL) events_after(s);
     return STEP_OK;
 }
+
+/* result.interpolate: the interpolating polynomial of the last step and its derivative at t,
+   np.dot(cy, phi[:kord+1]) and np.dot(cyp, phi[:kord+1]) (dgemv: kord + 1 >= 2 rows) */
+void pv_interpolate(const pv_state *s, double t, double *y, double *yp)
+{
+    const i64 n = s->n;
+    const double *psi = s->psi;
+    double delt = t - s->tn, cy[8], cyp[8], c = 1.0, d = 0.0, gam = delt / psi[0];
+    i64 kord = s->kused > 0 ? s->kused : 1;
+    cy[0] = 1.0;
+    cyp[0] = 0.0;
+    for (i64 j = 1; j <= kord; j++) {
+        d = d * gam + c / psi[j - 1];
+        c = c * gam;
+        cy[j] = c;
+        cyp[j] = d;
+        if (j < kord) gam = (delt + psi[j - 1]) / psi[j];
+    }
+    if (s->blas64) {
+        ((dgemv64_fn) s->dgemv)(101, 112, kord + 1, n, 1., s->phi, n, cy, 1, 0., y, 1);
+        ((dgemv64_fn) s->dgemv)(101, 112, kord + 1, n, 1., s->phi, n, cyp, 1, 0., yp, 1);
+    }
+    else {
+        ((dgemv32_fn) s->dgemv)(101, 112, (int) (kord + 1), (int) n, 1., s->phi, (int) n, cy, 1,
+                                0., y, 1);
+        ((dgemv32_fn) s->dgemv)(101, 112, (int) (kord + 1), (int) n, 1., s->phi, (int) n, cyp,
+                                1, 0., yp, 1);
+    }
+}

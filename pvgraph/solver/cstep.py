@@ -13,6 +13,14 @@ is evaluated and factorised by the Python code (``_setup``, called back from C),
 matrix with a non-finite entry or a zero pivot, to report it. Errors are raised by the Python
 code, with the same messages.
 
+Around the step, for the integration loop of ``solve_dae``: when the events are the system's
+compiled ones, the kernel evaluates them at the end of each step (``pv_events``) and applies
+``EventTracker.crossings``' candidate test; when no value was zero before the step and none
+can have changed sign, the loop takes the new values from it instead of evaluating them
+itself (:meth:`CStepIntegrator.events_quiet`); otherwise the Python code evaluates and
+decides as before. The interpolant of the last step (outputs at ``t_eval``, event location)
+is evaluated in C as well.
+
 The numbers are the Python step's, bit for bit: every operation is the one numpy performs, in
 the same order, and the library routines are the very ones numpy and scipy call (numpy's BLAS
 ``ddot``, ``daxpy`` and ``dgemv``, scipy's LAPACK ``dgetrf`` and ``dgetrs``; see ``cstep.c``).
@@ -81,8 +89,9 @@ _SOLVE = ctypes.CFUNCTYPE(ctypes.c_int)
 class _Kernel:
     """The compiled step and the BLAS / LAPACK routines it calls."""
 
-    def __init__(self, step, ddot, dgemv, daxpy, dgetrs, dgetrf, blas64):
+    def __init__(self, step, interp, ddot, dgemv, daxpy, dgetrs, dgetrf, blas64):
         self.step = step
+        self.interp = interp
         self.ddot, self.dgemv, self.daxpy, self.dgetrs = ddot, dgemv, daxpy, dgetrs
         self.dgetrf = dgetrf
         self.blas64 = blas64
@@ -153,7 +162,10 @@ def _load():
     step = lib.pv_step
     step.argtypes = [ctypes.POINTER(_State)]
     step.restype = ctypes.c_int
-    k = _Kernel(step, *_numpy_blas()[:3], _scipy_lapack("dgetrs"), _scipy_lapack("dgetrf"),
+    interp = lib.pv_interpolate
+    interp.argtypes = [ctypes.POINTER(_State), _dbl, _vp, _vp]
+    interp.restype = None
+    k = _Kernel(step, interp, *_numpy_blas()[:3], _scipy_lapack("dgetrs"), _scipy_lapack("dgetrf"),
                 _numpy_blas()[3])
     _self_check(k)
     return k
@@ -175,7 +187,7 @@ def _self_check(k):
         v = rng.standard_normal(n) * 10.0 ** rng.integers(-6, 6, n)
         if 0.0 + ddot(n, v.ctypes.data, 1, v.ctypes.data, 1) != np.dot(v, v):
             raise ValueError("the kernel's ddot differs from numpy's dot")
-        for kk in range(1, MAX_ORDER + 1):
+        for kk in range(1, MAX_ORDER + 2):        # predictor and interpolant blocks
             phi = rng.standard_normal((kk, n))
             g = rng.standard_normal(kk)
             out = np.zeros(n)
@@ -240,11 +252,13 @@ class CStepIntegrator(IDAIntegrator):
 
     ``dense_setup`` (True): evaluate and factorise a dense compiled Jacobian in C; False
     calls the Python code back for every iteration matrix. ``step_events`` (True): evaluate
-    compiled event functions after each step in C (:meth:`watch_events`).
+    compiled event functions after each step in C (:meth:`watch_events`). ``c_interpolate``
+    (True): ``interpolate`` (outputs, event location) in C.
     """
 
     dense_setup = True
     step_events = True
+    c_interpolate = True
 
     tn, t_bound, hh, hused = _field("tn"), _field("t_bound"), _field("hh"), _field("hused")
     cj, cjlast, cjold, ck = _field("cj"), _field("cjlast"), _field("cjold"), _field("ck")
@@ -341,6 +355,8 @@ class CStepIntegrator(IDAIntegrator):
         self._cst = None
         self._sref = ctypes.byref(s)
         self._tracker = None
+        self._iy, self._iyp = np.zeros(n), np.zeros(n)
+        self._iaddr = (self._iy.ctypes.data, self._iyp.ctypes.data)
 
     def _set_weights(self, y):
         """As IDAIntegrator's, into the arrays the kernel shares."""
@@ -394,6 +410,13 @@ class CStepIntegrator(IDAIntegrator):
             self._exc = exc
             return 3
 
+    def interpolate(self, t):
+        """(y, y') at t in the last step (``result.interpolate``, in C)."""
+        if not self.c_interpolate:
+            return IDAIntegrator.interpolate(self, t)
+        self._kernel.interp(self._sref, t, *self._iaddr)
+        return self._iy.copy(), self._iyp.copy()
+
     def watch_events(self, tracker):
         """Evaluate ``tracker``'s event functions at the end of every step in C, if they are
         this system's compiled ones (:meth:`events_quiet` then tells the result); True if so.
@@ -446,7 +469,14 @@ class CStepIntegrator(IDAIntegrator):
             return False
         tracker = self._tracker
         tracker.nroot += tracker.m
-        tracker.g = self._g_new
+        g = tracker.g = self._g_new
+        # the next step reads these values and writes the other array of the pair
+        k = 0 if g is self._g_pair[1] else 1
+        s = self._s
+        s.g_old = s.g_new
+        s.g_new = self._g_addr[k]
+        self._g_new = self._g_pair[k]
+        self._g_bound = g
         return True
 
     def step(self):
