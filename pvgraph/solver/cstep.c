@@ -10,8 +10,13 @@
  *     k = 1, dgemv (row major, transposed) for k > 1;
  *   - the LU solve is scipy's LAPACK dgetrs (its pointer from scipy.linalg.cython_lapack);
  *   - x ** y of Python floats is the C library's pow, math.sqrt its sqrt.
- * The iteration matrix is evaluated and factorised by the Python code (a callback), which also
- * raises every error from the codes returned here.
+ * A dense iteration matrix of a compiled Jacobian (System.jacobian_dense) is evaluated by the
+ * compiled pv_jacobian, scattered into a zeroed column-major matrix as numpy's
+ * J[rows, cols] = values and factorised by scipy's LAPACK dgetrf (the routine scipy's getrf
+ * calls), as the Python code does. Anything else -- finite-difference or sparse matrices, and
+ * any matrix with a non-finite entry or a zero pivot (to report it) -- is evaluated and
+ * factorised by the Python code (a callback), which also raises every error from the codes
+ * returned here.
  */
 #include <math.h>
 #include <stdint.h>
@@ -55,6 +60,11 @@ typedef void (*dgemv32_fn)(int, int, int, int, double, const double *, int, cons
 typedef void (*dgetrs_fn)(char *, int *, int *, double *, int *, int *, double *, int *, int *);
 typedef int (*setup_fn)(double, double, double);
 typedef int (*solve_fn)(void);
+typedef int (*jac_fn)(double, const double *, const double *, const double *,
+                      const double *, const void *, double, double *);
+typedef int (*ev_fn)(double, const double *, const double *, const double *, const double *,
+                     const void *, double *);
+typedef void (*dgetrf_fn)(int *, int *, double *, int *, int *, int *);
 #define DOT_MAX_N 10000
 
 /* Keep in step with _State in cstep.py: 8-byte fields only. */
@@ -78,6 +88,17 @@ typedef struct {
     i64 fail_kind, fail_serial;
     double err_t, err_h;
     i64 err_count, err_status;
+    /* the dense setup in C (jac == NULL: by the Python callback) */
+    void *jac, *dgetrf;
+    const i64 *rows, *cols;
+    double *jout, *c_lu;
+    int *c_piv;
+    i64 nnz, c_setups;
+    /* the event functions after a step (ev == NULL or g_old == NULL: not evaluated) */
+    void *ev;
+    const i64 *ev_idx;
+    double *ev_buf, *g_old, *g_new;
+    i64 ev_m, ev_state;
 } pv_state;
 
 /* numpy's pairwise summation (loops_utils.h.src), 8 accumulators, blocks of 128 */
@@ -173,6 +194,27 @@ static int lu_solve(pv_state *s, double *x)
     return 0;
 }
 
+/* JacobianEvaluator.iteration_matrix (System.jacobian_dense) and LUSolver.factor for a
+   compiled Jacobian: 0, or -1 where the Python code must do it (a non-finite value, a zero
+   pivot: it evaluates the same matrix again and reports the failure) */
+static int dense_setup(pv_state *s, double tn, double cj)
+{
+    const i64 n = s->n, nnz = s->nnz;
+    double *a = s->c_lu, *v = s->jout;
+    ((jac_fn) s->jac)(tn, s->yy, s->yp, s->d, s->P, s->T, cj, v);
+    for (i64 k = 0; k < nnz; k++)
+        if (!isfinite(v[k])) return -1;
+    memset(a, 0, (size_t) (n * n) * sizeof(double));
+    for (i64 k = 0; k < nnz; k++) a[s->cols[k] * n + s->rows[k]] = v[k];
+    int ni = (int) n, info = 0;
+    ((dgetrf_fn) s->dgetrf)(&ni, &ni, a, &ni, s->c_piv, &info);
+    if (info != 0) return -1;
+    s->lu = a;
+    s->piv = s->c_piv;
+    s->c_setups++;
+    return 0;
+}
+
 /* IDAIntegrator._newton */
 static int newton(pv_state *s, double tn, i64 kk, double hh, double cj, const double *gamma)
 {
@@ -201,7 +243,8 @@ static int newton(pv_state *s, double tn, i64 kk, double hh, double cj, const do
             s->cjold = cj;
             s->ss = SS_FIRST_STEP;
             s->force_setup = 0;
-            int info = ((setup_fn) s->setup)(tn, cj, hh);
+            int info = s->jac != NULL ? dense_setup(s, tn, cj) : -1;
+            if (info != 0) info = ((setup_fn) s->setup)(tn, cj, hh);
             jcur = 1;
             cjratio = 1.0;
             if (info != 0) {
@@ -380,6 +423,21 @@ static void complete_step(pv_state *s, i64 kk, double hh, i64 knew, double err_k
     set_weights(s, phi);
 }
 
+/* EventTracker.evaluate at the step's end (the compiled pv_events, entries ev_idx) into
+   g_new, and the test of EventTracker.crossings: ev_state 1 when no event function was zero
+   before the step and none has g_old * g_new <= 0 (no candidate), else 2 */
+static void events_after(pv_state *s)
+{
+    ((ev_fn) s->ev)(s->tn, s->yy, s->yp, s->d, s->P, s->T, s->ev_buf);
+    int quiet = 1;
+    for (i64 j = 0; j < s->ev_m; j++) {
+        double g = s->ev_buf[s->ev_idx[j]], o = s->g_old[j];
+        s->g_new[j] = g;
+        if (o == 0.0 || o * g <= 0.0) quiet = 0;
+    }
+    s->ev_state = quiet ? 1 : 2;
+}
+
 /* IDAIntegrator.step */
 int pv_step(pv_state *s)
 {
@@ -387,6 +445,7 @@ int pv_step(pv_state *s)
     double *phi = s->phi;
     const double saved_t = s->tn;
     double hh = s->hh;
+    s->ev_state = 0;
     if ((saved_t + hh - s->t_bound) * hh > 0.0) {
         double hh_new = (s->t_bound - saved_t) * (1.0 - 4.0 * UROUND);
         if (s->nst_restart == 0) {
@@ -521,5 +580,35 @@ int pv_step(pv_state *s)
     s->t_old = saved_t;
     s->tn = tn;
     complete_step(s, kk, hh, knew, err_k, err_km1, nef + ncf > 0);
+    if (s->ev != NULL && s->g_old != NULL) events_after(s);
     return STEP_OK;
+}
+
+/* result.interpolate: the interpolating polynomial of the last step and its derivative at t,
+   np.dot(cy, phi[:kord+1]) and np.dot(cyp, phi[:kord+1]) (dgemv: kord + 1 >= 2 rows) */
+void pv_interpolate(const pv_state *s, double t, double *y, double *yp)
+{
+    const i64 n = s->n;
+    const double *psi = s->psi;
+    double delt = t - s->tn, cy[8], cyp[8], c = 1.0, d = 0.0, gam = delt / psi[0];
+    i64 kord = s->kused > 0 ? s->kused : 1;
+    cy[0] = 1.0;
+    cyp[0] = 0.0;
+    for (i64 j = 1; j <= kord; j++) {
+        d = d * gam + c / psi[j - 1];
+        c = c * gam;
+        cy[j] = c;
+        cyp[j] = d;
+        if (j < kord) gam = (delt + psi[j - 1]) / psi[j];
+    }
+    if (s->blas64) {
+        ((dgemv64_fn) s->dgemv)(101, 112, kord + 1, n, 1., s->phi, n, cy, 1, 0., y, 1);
+        ((dgemv64_fn) s->dgemv)(101, 112, kord + 1, n, 1., s->phi, n, cyp, 1, 0., yp, 1);
+    }
+    else {
+        ((dgemv32_fn) s->dgemv)(101, 112, (int) (kord + 1), (int) n, 1., s->phi, (int) n, cy, 1,
+                                0., y, 1);
+        ((dgemv32_fn) s->dgemv)(101, 112, (int) (kord + 1), (int) n, 1., s->phi, (int) n, cyp,
+                                1, 0., yp, 1);
+    }
 }

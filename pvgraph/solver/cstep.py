@@ -5,15 +5,27 @@ run's time is the solver's own Python: a step of :class:`~pvgraph.solver.ida.IDA
 makes about 25 numpy calls. :class:`CStepIntegrator` performs ``step()`` -- prediction,
 Newton iteration, error test, failures with their step and order reductions, order and step
 selection, history update and error weights -- in one C call that evaluates the compiled
-residual directly. The iteration matrix is still evaluated and factorised by the Python code
-(``_setup``, called back from C), and errors are raised by the Python code, with the same
-messages.
+residual directly. A dense iteration matrix from the compiled Jacobian
+(``System.jacobian_dense``, the one ``simulate`` uses up to ``System.DENSE_MAX`` unknowns) is
+evaluated by the compiled ``pv_jacobian`` and factorised by LAPACK in C too, counted in the
+evaluator's ``nje`` and the LU solver's ``nlu``; any other matrix (finite differences, sparse)
+is evaluated and factorised by the Python code (``_setup``, called back from C), and so is a
+matrix with a non-finite entry or a zero pivot, to report it. Errors are raised by the Python
+code, with the same messages.
+
+Around the step, for the integration loop of ``solve_dae``: when the events are the system's
+compiled ones, the kernel evaluates them at the end of each step (``pv_events``) and applies
+``EventTracker.crossings``' candidate test; when no value was zero before the step and none
+can have changed sign, the loop takes the new values from it instead of evaluating them
+itself (:meth:`CStepIntegrator.events_quiet`); otherwise the Python code evaluates and
+decides as before. The interpolant of the last step (outputs at ``t_eval``, event location)
+is evaluated in C as well.
 
 The numbers are the Python step's, bit for bit: every operation is the one numpy performs, in
 the same order, and the library routines are the very ones numpy and scipy call (numpy's BLAS
-``ddot``, ``daxpy`` and ``dgemv``, scipy's LAPACK ``dgetrs``; see ``cstep.c``). On loading,
-the kernel's BLAS calls are checked against numpy on random data; any mismatch, a missing
-compiler or a missing routine leaves the Python step in use.
+``ddot``, ``daxpy`` and ``dgemv``, scipy's LAPACK ``dgetrf`` and ``dgetrs``; see ``cstep.c``).
+On loading, the kernel's BLAS and LAPACK calls are checked against numpy and scipy on random
+data; any mismatch, a missing compiler or a missing routine leaves the Python step in use.
 
 It applies when the residual is a C-route :meth:`System.residual <pvgraph.system.System>`
 of at least 2 unknowns and no variable is declared non-negative. Dense iteration matrices
@@ -63,7 +75,11 @@ class _State(ctypes.Structure):
                                "force_setup", "nst", "nre", "nni", "netf", "ncfn", "nsetups",
                                "fail_kind", "fail_serial")]
         + [(k, _dbl) for k in ("err_t", "err_h")]
-        + [(k, _i64) for k in ("err_count", "err_status")])
+        + [(k, _i64) for k in ("err_count", "err_status")]
+        + [(k, _vp) for k in ("jac", "dgetrf", "rows", "cols", "jout", "c_lu", "c_piv")]
+        + [(k, _i64) for k in ("nnz", "c_setups")]
+        + [(k, _vp) for k in ("ev", "ev_idx", "ev_buf", "g_old", "g_new")]
+        + [(k, _i64) for k in ("ev_m", "ev_state")])
 
 
 _SETUP = ctypes.CFUNCTYPE(ctypes.c_int, _dbl, _dbl, _dbl)
@@ -73,9 +89,11 @@ _SOLVE = ctypes.CFUNCTYPE(ctypes.c_int)
 class _Kernel:
     """The compiled step and the BLAS / LAPACK routines it calls."""
 
-    def __init__(self, step, ddot, dgemv, daxpy, dgetrs, blas64):
+    def __init__(self, step, interp, ddot, dgemv, daxpy, dgetrs, dgetrf, blas64):
         self.step = step
+        self.interp = interp
         self.ddot, self.dgemv, self.daxpy, self.dgetrs = ddot, dgemv, daxpy, dgetrs
+        self.dgetrf = dgetrf
         self.blas64 = blas64
 
 
@@ -119,10 +137,10 @@ def _numpy_blas():
     raise OSError("numpy's CBLAS routines (cblas_ddot, cblas_dgemv, cblas_daxpy) not found")
 
 
-def _scipy_dgetrs():
-    """Address of the dgetrs scipy.linalg's getrs calls (scipy.linalg.cython_lapack)."""
+def _scipy_lapack(name):
+    """Address of the LAPACK routine scipy.linalg's wrappers call (scipy.linalg.cython_lapack)."""
     from scipy.linalg import cython_lapack
-    cap = cython_lapack.__pyx_capi__["dgetrs"]
+    cap = cython_lapack.__pyx_capi__[name]
     get_name = ctypes.pythonapi.PyCapsule_GetName
     get_name.restype = ctypes.c_char_p
     get_name.argtypes = [ctypes.py_object]
@@ -144,7 +162,11 @@ def _load():
     step = lib.pv_step
     step.argtypes = [ctypes.POINTER(_State)]
     step.restype = ctypes.c_int
-    k = _Kernel(step, *_numpy_blas()[:3], _scipy_dgetrs(), _numpy_blas()[3])
+    interp = lib.pv_interpolate
+    interp.argtypes = [ctypes.POINTER(_State), _dbl, _vp, _vp]
+    interp.restype = None
+    k = _Kernel(step, interp, *_numpy_blas()[:3], _scipy_lapack("dgetrs"), _scipy_lapack("dgetrf"),
+                _numpy_blas()[3])
     _self_check(k)
     return k
 
@@ -159,12 +181,13 @@ def _self_check(k):
     axpy = ctypes.CFUNCTYPE(None, itype, _dbl, _vp, itype, _vp, itype)(k.daxpy)
     ip = ctypes.POINTER(ctypes.c_int)
     getrs = ctypes.CFUNCTYPE(None, ctypes.c_char_p, ip, ip, _vp, ip, _vp, _vp, ip, ip)(k.dgetrs)
+    getrf = ctypes.CFUNCTYPE(None, ip, ip, _vp, ip, _vp, ip)(k.dgetrf)
     rng = np.random.default_rng(7)
     for n in (2, 7, 33, 91, 120):
         v = rng.standard_normal(n) * 10.0 ** rng.integers(-6, 6, n)
         if 0.0 + ddot(n, v.ctypes.data, 1, v.ctypes.data, 1) != np.dot(v, v):
             raise ValueError("the kernel's ddot differs from numpy's dot")
-        for kk in range(1, MAX_ORDER + 1):
+        for kk in range(1, MAX_ORDER + 2):        # predictor and interpolant blocks
             phi = rng.standard_normal((kk, n))
             g = rng.standard_normal(kk)
             out = np.zeros(n)
@@ -187,6 +210,17 @@ def _self_check(k):
               ctypes.byref(ni), ctypes.byref(info))
         if not np.array_equal(x, lu.solve(b)):
             raise ValueError("the kernel's dgetrs differs from scipy's getrs")
+        for a in (m, np.where(rng.random((n, n)) < 0.8, 0.0, m),
+                  np.vstack([m[:-1], m[:1]])):            # sparse; singular (a repeated row)
+            f = np.asfortranarray(a)
+            ipiv = np.zeros(n, dtype=np.int32)
+            getrf(ctypes.byref(ni), ctypes.byref(ni), f.ctypes.data, ctypes.byref(ni),
+                  ipiv.ctypes.data, ctypes.byref(info))
+            lu = LUSolver()
+            ref = lu.factor(a.copy())
+            if not (info.value == ref and np.array_equal(f, lu._lu)
+                    and np.array_equal(ipiv, lu._piv + 1)):
+                raise ValueError("the kernel's dgetrf differs from scipy's getrf")
 
 
 def c_system_of(fun):
@@ -215,7 +249,16 @@ class CStepIntegrator(IDAIntegrator):
     The scalar state lives in the kernel's structure (the attributes below read and write
     it), the history ``phi``, the weights and ``ee`` in arrays shared with the kernel; ``yy``
     and ``yp`` are fresh arrays after every step, as with the Python step.
+
+    ``dense_setup`` (True): evaluate and factorise a dense compiled Jacobian in C; False
+    calls the Python code back for every iteration matrix. ``step_events`` (True): evaluate
+    compiled event functions after each step in C (:meth:`watch_events`). ``c_interpolate``
+    (True): ``interpolate`` (outputs, event location) in C.
     """
+
+    dense_setup = True
+    step_events = True
+    c_interpolate = True
 
     tn, t_bound, hh, hused = _field("tn"), _field("t_bound"), _field("hh"), _field("hused")
     cj, cjlast, cjold, ck = _field("cj"), _field("cjlast"), _field("cjold"), _field("ck")
@@ -297,8 +340,23 @@ class CStepIntegrator(IDAIntegrator):
         self._solve_cb = _SOLVE(self._solve_from_c)
         s.solve = ctypes.cast(self._solve_cb, _vp).value
         s.fail_kind = FAIL_BY_PYTHON
+        if self.dense_setup and _compiled_dense_jacobian(system, jacobian):
+            nnz = len(system._rows)
+            self._rows = np.ascontiguousarray(system._rows, dtype=np.int64)
+            self._cols = np.ascontiguousarray(system._cols, dtype=np.int64)
+            self._jout = np.zeros(max(1, nnz))
+            self._c_lu = np.zeros((n, n), order="F")
+            self._c_piv = np.zeros(n, dtype=np.int32)
+            s.nnz = nnz
+            s.jac = ctypes.cast(system._cmod.jacobian, _vp).value
+            s.dgetrf = kern.dgetrf
+            for name in ("rows", "cols", "jout", "c_lu", "c_piv"):
+                setattr(s, name, getattr(self, "_" + name).ctypes.data)
         self._cst = None
         self._sref = ctypes.byref(s)
+        self._tracker = None
+        self._iy, self._iyp = np.zeros(n), np.zeros(n)
+        self._iaddr = (self._iy.ctypes.data, self._iyp.ctypes.data)
 
     def _set_weights(self, y):
         """As IDAIntegrator's, into the arrays the kernel shares."""
@@ -352,6 +410,75 @@ class CStepIntegrator(IDAIntegrator):
             self._exc = exc
             return 3
 
+    def interpolate(self, t):
+        """(y, y') at t in the last step (``result.interpolate``, in C)."""
+        if not self.c_interpolate:
+            return IDAIntegrator.interpolate(self, t)
+        self._kernel.interp(self._sref, t, *self._iaddr)
+        return self._iy.copy(), self._iyp.copy()
+
+    def watch_events(self, tracker):
+        """Evaluate ``tracker``'s event functions at the end of every step in C, if they are
+        this system's compiled ones (:meth:`events_quiet` then tells the result); True if so.
+        """
+        from pvgraph.system import System
+        vector = tracker._vector
+        if not self.step_events or vector is None or not tracker.m:
+            return False
+        g_all, idx = vector
+        system = self._system
+        if (getattr(g_all, "__self__", None) is not system
+                or getattr(g_all, "__func__", None) is not System._c_events
+                or idx.min() < 0 or idx.max() >= min(len(system.event_specs),
+                                                     system._cmod.n_ev)):
+            return False
+        s = self._s
+        self._ev_idx = np.ascontiguousarray(idx, dtype=np.int64)
+        self._ev_buf = np.zeros(system._cmod.n_ev)
+        self._g_pair = (np.zeros(tracker.m), np.zeros(tracker.m))
+        self._g_addr = tuple(g.ctypes.data for g in self._g_pair)
+        s.ev = ctypes.cast(system._cmod.events, _vp).value
+        s.ev_idx, s.ev_buf = self._ev_idx.ctypes.data, self._ev_buf.ctypes.data
+        s.ev_m = tracker.m
+        s.g_old = s.g_new = None
+        self._g_bound = self._g_new = None
+        self._tracker = tracker
+        return True
+
+    def _bind_events(self, g):
+        """Let the kernel read the values before the step from ``g`` (the tracker's ``g``)."""
+        s = self._s
+        pair, addr = self._g_pair, self._g_addr
+        k = 0 if g is pair[1] else 1            # write into the other array of the pair
+        self._g_new = pair[k]
+        s.g_new = addr[k]
+        if g is pair[1 - k]:
+            s.g_old = addr[1 - k]
+        elif (isinstance(g, np.ndarray) and g.dtype == np.float64 and g.shape == pair[0].shape
+              and g.flags.c_contiguous):
+            s.g_old = g.ctypes.data
+        else:
+            s.g_old = None                        # not evaluated: the Python code does it
+        self._g_bound = g
+
+    def events_quiet(self):
+        """After a step: True if the kernel found no candidate crossing (see
+        ``EventTracker.crossings``); the tracker then holds the values at the step's end and
+        counts them as ``evaluate`` does. False: the Python code evaluates and decides."""
+        if self._s.ev_state != 1:
+            return False
+        tracker = self._tracker
+        tracker.nroot += tracker.m
+        g = tracker.g = self._g_new
+        # the next step reads these values and writes the other array of the pair
+        k = 0 if g is self._g_pair[1] else 1
+        s = self._s
+        s.g_old = s.g_new
+        s.g_new = self._g_addr[k]
+        self._g_new = self._g_pair[k]
+        self._g_bound = g
+        return True
+
     def step(self):
         """Take one successful step towards ``t_bound``; raise SolverError on failure."""
         s = self._s
@@ -363,8 +490,16 @@ class CStepIntegrator(IDAIntegrator):
             s.T = ctypes.addressof(st.T)
         if system.modes:
             st.d[:len(system.modes)] = system.modes
+        tracker = self._tracker
+        if tracker is not None and tracker.g is not self._g_bound:
+            self._bind_events(tracker.g)
         serial = s.fail_serial
         code = self._kernel.step(self._sref)
+        if s.c_setups:
+            # the counters of the evaluator and the LU solver the C setups stand for
+            self.jacobian.nje += s.c_setups
+            self.lu.nlu += s.c_setups
+            s.c_setups = 0
         if s.fail_serial != serial and s.fail_kind != FAIL_BY_PYTHON:
             self._fail = (int(s.fail_kind), self._failvec.copy())
         if code == STEP_OK:
@@ -383,6 +518,16 @@ class CStepIntegrator(IDAIntegrator):
         if code == STEP_CONV_FAILS:
             self._raise_newton(int(s.err_status), int(s.err_count), s.err_t, s.err_h)
         raise SolverError(f"{SOLVER_NAME}: the C step returned {code}", t=s.tn, h=s.hh)
+
+
+def _compiled_dense_jacobian(system, jacobian):
+    """Is the iteration matrix ``system.jacobian_dense``, dense, from the compiled pv_jacobian?"""
+    from pvgraph.system import System
+    jac = jacobian.jac
+    return (getattr(jac, "__self__", None) is system
+            and getattr(jac, "__func__", None) is System.jacobian_dense
+            and not jacobian.sparse and not jacobian.detect
+            and system._cmod.n_jac == len(system._rows) == len(system._cols))
 
 
 def make_integrator(c_step, fun, n, rtol, atol, error_mask, jacobian, lu, max_order, max_step,

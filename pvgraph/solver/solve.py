@@ -278,6 +278,10 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     tracker = EventTracker(event_list) if event_list else None
     if tracker is not None:
         tracker.reset(t0, y, yp)
+    # the C step evaluates compiled event functions after each step and reports when none
+    # can have crossed zero (the tracker then holds the new values)
+    c_events = tracker is not None and hasattr(integ, "watch_events") and \
+        integ.watch_events(tracker)
     records = []
     dense = DenseOutput(n) if dense_output else None
     message = "The solver successfully reached the end of the integration interval."
@@ -297,7 +301,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         if dense is not None:
             dense.append(t_old, tn, integ.kused, integ.psi, integ.phi)
         hit = None
-        if tracker is not None:
+        if tracker is not None and not (c_events and integ.events_quiet()):
             g_new = tracker.evaluate(tn, integ.yy, integ.yp)
             for te, i, direction in tracker.crossings(t_old, tn, g_new, integ.interpolate):
                 ev = event_list[i]

@@ -258,3 +258,166 @@ def test_without_a_compiler_the_python_step_runs(monkeypatch, c_steps):
     assert "no C compiler" in cstep.kernel_error()
     with pytest.raises(ValueError, match="not available"):
         simulate(s, 0.5, c_step=True)
+
+
+# ---------------------------------------------------------------- the dense setup in C
+
+@pytest.fixture
+def py_setups(monkeypatch):
+    """Counts the iteration matrices the C step asks the Python code for."""
+    count = {"n": 0}
+    setup = cstep.CStepIntegrator._setup_from_c
+
+    def counted(self, *a):
+        count["n"] += 1
+        return setup(self, *a)
+
+    monkeypatch.setattr(cstep.CStepIntegrator, "_setup_from_c", counted)
+    return count
+
+
+def test_rig_dense_setup_in_c_against_the_callback_and_python(rig, py_setups, monkeypatch):
+    # PVG 32 rig test 2 (dense 91 x 91, compiled Jacobian): the Python step, the C step with
+    # the iteration matrix from the Python code, and with it evaluated and factorised in C
+    t_eval = np.linspace(0.0, 0.2, 21)
+
+    def run(cs):
+        rig.reset_modes()
+        return simulate(rig, 0.2, rtol=1e-6, t_eval=t_eval, c_step=cs)
+
+    a, b = both(run)
+    assert py_setups["n"] == 0 and b.stats["nlu"] > 10
+    monkeypatch.setattr(cstep.CStepIntegrator, "dense_setup", False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        c = run(None)
+    assert py_setups["n"] == c.stats["nlu"]       # the step's setups (the start has its own)
+    assert_identical(a, b)
+    assert_identical(a, c)
+    assert b.stats["netf"] > 0 and b.stats["nroot"] > 0
+
+
+class OverflowParams(Params):
+    rate: float = Field(..., description="Rate of the level [1/s]")
+    h0: float = Field(..., description="Start level [-]")
+
+
+class LogisticTail(Component):
+    """h' = rate and s = 1 / (1 + exp(h)): once exp(h) overflows s = 0 is still finite, but
+    its derivative -s exp(h) / (1 + exp(h)) is 0 * inf = NaN."""
+
+    Params = OverflowParams
+    ports = {}
+    variables = {"h": Variable("1", lambda p: p.h0, 1.0, "level"),
+                 "s": Variable("1", lambda p: 0.0, 1.0, "logistic of the level")}
+
+    def equations(self, v, p):
+        return [der(v.h) - p.rate, v.s - 1.0 / (1.0 + E.exp(v.h))]
+
+
+class VanishingCoefficient(Component):
+    """h' = rate and (s - 1) exp(-exp(h)) = 0: the coefficient underflows to 0 once
+    exp(h) > 745, and the column of s in the iteration matrix is exactly zero."""
+
+    Params = OverflowParams
+    ports = {}
+    variables = {"h": Variable("1", lambda p: p.h0, 1.0, "level"),
+                 "s": Variable("1", lambda p: 1.0, 1.0, "value fixed by the coefficient")}
+
+    def equations(self, v, p):
+        return [der(v.h) - p.rate, (v.s - 1.0) * E.exp(-E.exp(v.h))]
+
+
+@pytest.mark.parametrize("cls, rate, h0, t_end, expect", [
+    (LogisticTail, 10.0, 700.0, 2.0, "is not finite (NaN or inf) in equation(s) [1]"),
+    (VanishingCoefficient, 1.0, 1.0, 10.0, "is singular in the column of 'x.s'")])
+def test_jacobian_failures_in_the_c_setup_are_the_pythons(cls, rate, h0, t_end, expect,
+                                                          py_setups, c_steps):
+    # the C setup hands a non-finite matrix or a zero pivot to the Python code, which
+    # reports it: same failure, same message, at the same t (h = h0 + rate t reaches the
+    # overflow of exp(h) at 709.78, resp. the underflow of exp(-exp(h)) at h = 6.614)
+    c = Circuit("fail")
+    c.add("x", cls(rate=rate, h0=h0))
+    s = c.compile(backend="c")
+    assert s.n == 2
+    msgs, ts = [], []
+    for cs in (False, None):
+        with pytest.raises(SolverError) as info:
+            simulate(s, t_end, rtol=1e-6, c_step=cs)
+        msgs.append(str(info.value))
+        ts.append(info.value.t)
+    assert msgs[0] == msgs[1] and ts[0] == ts[1]
+    assert expect in msgs[0]
+    # t is the last step's end: the step that fails crosses that point (an old matrix may
+    # carry the steps a little past it), well before t_end
+    h_fail = math.log(1.7976931348623157e308 if cls is LogisticTail else 745.1332)
+    t_fail = (h_fail - h0) / rate
+    assert t_fail - 1e-3 * t_end <= ts[0] < t_fail + 0.1 * t_end
+    assert c_steps["n"] > 10 and py_setups["n"] > 0
+
+
+# ---------------------------------------------------------------- events after the step in C
+
+class RelayParams(Params):
+    rate: float = Field(..., gt=0.0, description="Speed of the level [1/s]")
+
+
+class Relay(Component):
+    """A level x running up at ``rate`` to 1 and down to 0, switched by two events; its
+    square s = x^2 (an algebraic unknown). ``held`` is exactly zero while running down (its
+    sign at every step start comes from a probe inside the step)."""
+
+    Params = RelayParams
+    ports = {}
+    modes = {"down": 0.0}
+    variables = {"x": Variable("1", lambda p: 0.0, 1.0, "level"),
+                 "s": Variable("1", lambda p: 0.0, 1.0, "square of the level")}
+
+    def equations(self, v, p):
+        down = v.mode("down")
+
+        def to_down(modes):
+            modes["down"] = 1.0
+
+        def to_up(modes):
+            modes["down"] = 0.0
+
+        v.event("top", E.where(down < 0.5, v.x - 1.0, -1.0), direction=1, action=to_down)
+        v.event("bottom", E.where(down > 0.5, -v.x, -1.0), direction=1, action=to_up)
+        v.event("held", E.where(down > 0.5, 0.0, v.x - 2.0))
+        return [der(v.x) - p.rate * (1.0 - 2.0 * down), v.s - v.x * v.x]
+
+
+def test_events_after_the_step_in_c_with_mode_changes_and_zeros(monkeypatch):
+    # the events' values at the step's end come from C while no sign can have changed; a
+    # crossing, and a value exactly zero at the step start (every step while running down,
+    # and each restart: the fired event's sign is unknown) go to the Python code
+    calls = {"quiet": 0, "python": 0}
+    quiet = cstep.CStepIntegrator.events_quiet
+
+    def counted(self):
+        out = quiet(self)
+        calls["quiet" if out else "python"] += 1
+        return out
+
+    monkeypatch.setattr(cstep.CStepIntegrator, "events_quiet", counted)
+    c = Circuit("relay")
+    c.add("r", Relay(rate=1.0))
+    s = c.compile(backend="c")
+    t_eval = np.linspace(0.0, 4.5, 46)
+
+    def run(cs):
+        s.reset_modes()
+        return simulate(s, 4.5, rtol=1e-8, t_eval=t_eval, c_step=cs)
+
+    a, b = both(run)
+    assert_identical(a, b)
+    assert a._mode_log == b._mode_log
+    assert [e.name for e in b.events] == ["r.top", "r.bottom", "r.top", "r.bottom"]
+    # x = t up to 1, then 2 - t down to 0, ...: switches at t = 1, 2, 3, 4
+    assert [e.t for e in b.events] == pytest.approx([1.0, 2.0, 3.0, 4.0], abs=1e-8)
+    assert b["r.x"] == pytest.approx(np.abs(((t_eval + 1.0) % 2.0) - 1.0), abs=1e-7)
+    assert calls["quiet"] > 10 and calls["python"] > 10
+    # every internal step as output
+    a, b = both(lambda cs: (s.reset_modes(), simulate(s, 4.5, rtol=1e-6, c_step=cs))[1])
+    assert_identical(a, b)
