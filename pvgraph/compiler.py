@@ -103,7 +103,22 @@ def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True,
         return _compile(circuit, eliminate_aliases, array_rows)
     finally:
         if enabled:
-            gc.enable()
+            resume_gc()
+
+
+def resume_gc():
+    """Enable the cyclic collector again after a stretch of building acyclic graphs.
+
+    The objects made meanwhile (a compiled system keeps its expression graphs, about 50 per
+    component) are first moved to the oldest generation (``gc.freeze`` then ``gc.unfreeze``,
+    a splice of lists), so the next young collections do not walk all of them again, one
+    generation after the other; a full collection still visits them (skipped where the
+    program has frozen objects of its own, which unfreezing would release).
+    """
+    if gc.get_freeze_count() == 0:
+        gc.freeze()
+        gc.unfreeze()
+    gc.enable()
 
 
 def _compile(circuit, eliminate_aliases, array_rows=None):
