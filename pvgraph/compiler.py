@@ -242,8 +242,9 @@ def _rel_path(root: Circuit, owner) -> str:
 
 def _declare_variables(path, comp, infos, registry):
     starts = comp.start_values_traced(path, registry)
-    explicit_user = set(comp._start)
-    from_params = set(comp.starts(comp.params))
+    explicit_user = comp._start
+    # keys of the parameter-derived start values (none where the class keeps the default)
+    from_params = comp.starts(comp.params) if type(comp).starts is not Component.starts else ()
     for pname, port in type(comp).ports.items():
         d = port.domain
         if d is SIGNAL:
