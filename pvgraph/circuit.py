@@ -460,7 +460,8 @@ def _pressure_islands(circuit: Circuit) -> list[dict]:
         return _islands(circuit)
     finally:
         if enabled:
-            gc.enable()
+            from .compiler import resume_gc
+            resume_gc()
 
 
 def _islands(circuit: Circuit) -> list[dict]:

@@ -3,7 +3,7 @@
 Pipeline
 --------
 1. Flatten the hierarchy; every variable gets its dotted name (``pvg.pvb.main_spool.flange.x``).
-2. Build the port graph (networkx) and take its connected components as connection sets. Per
+2. Join the ports connection by connection (union-find); each group is a connection set. Per
    set: across variables equal, through variables sum to zero; signals have exactly one driver.
 3. Trace every component's equations once into expression graphs (exact incidence). Numeric
    parameters are traced as parameter symbols (runtime values of the compiled system); those
@@ -35,7 +35,6 @@ import gc
 import zlib
 from dataclasses import dataclass
 
-import networkx as nx
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import maximum_bipartite_matching
@@ -104,7 +103,22 @@ def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True,
         return _compile(circuit, eliminate_aliases, array_rows)
     finally:
         if enabled:
-            gc.enable()
+            resume_gc()
+
+
+def resume_gc():
+    """Enable the cyclic collector again after a stretch of building acyclic graphs.
+
+    The objects made meanwhile (a compiled system keeps its expression graphs, about 50 per
+    component) are first moved to the oldest generation (``gc.freeze`` then ``gc.unfreeze``,
+    a splice of lists), so the next young collections do not walk all of them again, one
+    generation after the other; a full collection still visits them (skipped where the
+    program has frozen objects of its own, which unfreezing would release).
+    """
+    if gc.get_freeze_count() == 0:
+        gc.freeze()
+        gc.unfreeze()
+    gc.enable()
 
 
 def _compile(circuit, eliminate_aliases, array_rows=None):
@@ -228,8 +242,9 @@ def _rel_path(root: Circuit, owner) -> str:
 
 def _declare_variables(path, comp, infos, registry):
     starts = comp.start_values_traced(path, registry)
-    explicit_user = set(comp._start)
-    from_params = set(comp.starts(comp.params))
+    explicit_user = comp._start
+    # keys of the parameter-derived start values (none where the class keeps the default)
+    from_params = comp.starts(comp.params) if type(comp).starts is not Component.starts else ()
     for pname, port in type(comp).ports.items():
         d = port.domain
         if d is SIGNAL:
@@ -257,39 +272,64 @@ def _priority(key, user, params):
 
 
 def _connection_equations(root, leaves, infos) -> list[_Equation]:
-    graph = nx.Graph()
-    leaf_ids = {id(c) for _, c in leaves}
+    # ports numbered in the order met; connection sets by union-find over those numbers,
+    # listed in the order of their first port (as a graph's connected components are)
+    index: dict[tuple, int] = {}
+    attrs: list[tuple] = []     # (label, comp, port name, leaf)
     for path, comp in leaves:
+        cid = id(comp)
         for pname in type(comp).ports:
-            graph.add_node((id(comp), pname), label=f"{path}.{pname}", comp=comp, port=pname,
-                           leaf=True)
+            index[(cid, pname)] = len(attrs)
+            attrs.append((f"{path}.{pname}", comp, pname, True))
+    leaf_ids = {id(c) for _, c in leaves}
+    parent: list[int] = list(range(len(attrs)))
 
     def node_of(ref):
         key = (id(ref.owner), ref.name)
-        if key not in graph:
-            graph.add_node(key, label=(_rel_path(root, ref.owner) + "." + ref.name).lstrip("."),
-                           comp=ref.owner, port=ref.name, leaf=id(ref.owner) in leaf_ids)
-        return key
+        k = index.get(key)
+        if k is None:
+            k = index[key] = len(attrs)
+            attrs.append(((_rel_path(root, ref.owner) + "." + ref.name).lstrip("."),
+                          ref.owner, ref.name, id(ref.owner) in leaf_ids))
+            parent.append(k)
+        return k
+
+    def find(a):
+        root_ = a
+        while parent[root_] != root_:
+            root_ = parent[root_]
+        while parent[a] != root_:
+            parent[a], a = root_, parent[a]
+        return root_
+
+    def join(a, b):
+        ra, rb = find(a), find(b)
+        if ra != rb:
+            parent[rb] = ra
 
     def walk(node: Circuit):
         for refs in node._connections:
             keys = [node_of(r) for r in refs]
             for a, b in zip(keys, keys[1:]):
-                graph.add_edge(a, b)
+                join(a, b)
         for name, (ref, _) in node._exposed.items():
-            graph.add_edge(node_of(_PortKey(node, name)), node_of(ref))
+            join(node_of(_PortKey(node, name)), node_of(ref))
         for child in node._components.values():
             if isinstance(child, Circuit):
                 walk(child)
 
     walk(root)
+    members: dict[int, list[int]] = {}
+    for k in range(len(attrs)):
+        members.setdefault(find(k), []).append(k)
+    groups = sorted(members.values(), key=lambda g: g[0])
     equations = []
-    for group in nx.connected_components(graph):
-        ports = [graph.nodes[k] for k in group if graph.nodes[k]["leaf"]]
-        ports.sort(key=lambda a: a["label"])
-        labels = [a["label"] for a in ports]
-        exposed = sorted(graph.nodes[k]["label"] for k in group if not graph.nodes[k]["leaf"])
-        specs = [type(a["comp"]).ports[a["port"]] for a in ports]
+    for group in groups:
+        ports = [attrs[k] for k in group if attrs[k][3]]
+        ports.sort(key=lambda a: a[0])
+        labels = [a[0] for a in ports]
+        exposed = sorted(attrs[k][0] for k in group if not attrs[k][3])
+        specs = [type(a[1]).ports[a[2]] for a in ports]
         domains = {s.domain.name for s in specs}
         if len(domains) > 1:
             desc = ", ".join(f"{lab} ({s.domain.name})" for lab, s in zip(labels, specs))
