@@ -65,15 +65,20 @@ def test_the_kernel_loads_and_its_blas_is_numpys():
     assert cstep.kernel() is not None, cstep.kernel_error()
 
 
-def test_pump_volume_orifice_step_input(c_steps):
-    # a 10 l/min pump switched on at t = 0 (from p = 0) into 0.5 l and a 2 mm^2 orifice:
-    # the pressure settles where the orifice passes the pump flow, Q = Cd A sqrt(2 dp / rho)
+def _pump_volume_orifice():
+    """A 10 l/min pump into 0.5 l and a 2 mm^2 orifice to tank."""
     c = Circuit("pvo")
     node = c.add("node", VolumeNode(V=litre(0.5)))
     o = c.add("o", Orifice(A=mm2(2.0)))
     c.connect(c.add("pump", FlowSource(Q=lpm(10))).port, node.port, o.a)
     c.connect(o.b, c.add("tank", Tank()).port)
-    s = c.compile(backend="c")
+    return c
+
+
+def test_pump_volume_orifice_step_input(c_steps):
+    # a 10 l/min pump switched on at t = 0 (from p = 0) into 0.5 l and a 2 mm^2 orifice:
+    # the pressure settles where the orifice passes the pump flow, Q = Cd A sqrt(2 dp / rho)
+    s = _pump_volume_orifice().compile(backend="c")
     a, b = both(lambda cs: simulate(s, 2.0, rtol=1e-7, c_step=cs))
     assert_identical(a, b)
     assert c_steps["n"] == b.stats["nsteps"] > 50
@@ -242,12 +247,7 @@ def test_c_step_true_where_it_does_not_apply_is_refused():
 
 
 def test_without_a_compiler_the_python_step_runs(monkeypatch, c_steps):
-    c = Circuit("pvo")
-    node = c.add("node", VolumeNode(V=litre(0.5)))
-    o = c.add("o", Orifice(A=mm2(2.0)))
-    c.connect(c.add("pump", FlowSource(Q=lpm(10))).port, node.port, o.a)
-    c.connect(o.b, c.add("tank", Tank()).port)
-    s = c.compile(backend="c")
+    s = _pump_volume_orifice().compile(backend="c")
     ref = simulate(s, 0.5)
     monkeypatch.setattr(cstep, "_kernel", None)
     monkeypatch.setattr(cstep, "_kernel_error", None)
