@@ -191,14 +191,9 @@ def compiled_table(problems, repeats):
             t_c, (_, s_c, n_c, y_c) = median_run(run_c, reps)
             row = (f"| {p.name} | {tol:.0e} | {s_pv} | {m(y_pv):.2f} | {t_pv * 1e3:.1f} | "
                    f"{s_c} | {n_c} | {m(y_c):.2f} | {t_c * 1e3:.2f} ")
-            idas = make_idas(p, tol)
+            idas = run_idas(p, tol, reps, warm=True)
             if idas is not None:
-                try:
-                    idas()
-                    t_i, (_, s_i, n_i, y_i) = median_run(idas, reps)
-                except RuntimeError:
-                    idas = None
-            if idas is not None:
+                t_i, s_i, n_i, y_i = idas
                 ratios.append(t_c / t_i)
                 row += (f"| {s_i} | {n_i} | {m(y_i):.2f} | {t_i * 1e3:.2f} | {t_pv / t_c:.1f} "
                         f"| {t_c / t_i:.2f} |")
@@ -207,6 +202,22 @@ def compiled_table(problems, repeats):
             print(row, flush=True)
     print(f"median wall ratio pvgraph C / IDAS {statistics.median(ratios):.2f} "
           f"({len(ratios)} rows)")
+
+
+def run_idas(p, tol, repeats, warm=False):
+    """(median wall, steps, nre, y_end) of CasADi IDAS, or None where it has no form or fails.
+
+    ``warm``: one untimed run first."""
+    idas = make_idas(p, tol)
+    if idas is None:
+        return None
+    try:
+        if warm:
+            idas()
+        t, (_, steps, nre, y) = median_run(idas, repeats)
+    except RuntimeError:
+        return None
+    return t, steps, nre, y
 
 
 def median_run(run, repeats):
@@ -252,17 +263,13 @@ def main():
             reps = 1 if p.slow else args.repeats
             t_pv, (_, s_pv, n_pv, y_pv) = median_run(lambda: run_pvgraph(p, tol), reps)
             t_ida, (_, s_ida, n_ida, y_ida) = median_run(make_ida(p, tol), reps)
-            idas = make_idas(p, tol)
             m = lambda yf: mescd(yf, p.y_ref, p.atol(tol), tol)  # noqa: E731
             row = (f"| {p.name} | {tol:.0e} | {s_pv} | {n_pv} | {m(y_pv):.2f} | {t_pv * 1e3:.1f} "
                    f"| {s_ida} | {n_ida} | {m(y_ida):.2f} | {t_ida * 1e3:.1f} ")
             r_ida.append(t_pv / t_ida)
+            idas = run_idas(p, tol, reps)
             if idas is not None:
-                try:
-                    t_c, (_, s_c, n_c, y_c) = median_run(idas, reps)
-                except RuntimeError:
-                    idas = None
-            if idas is not None:
+                t_c, s_c, n_c, y_c = idas
                 r_idas.append(t_pv / t_c)
                 row += (f"| {s_c} | {n_c} | {m(y_c):.2f} | {t_c * 1e3:.1f} "
                         f"| {t_pv / t_ida:.2f} | {t_pv / t_c:.1f} |")
