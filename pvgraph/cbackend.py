@@ -34,6 +34,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+import threading
 import warnings
 from pathlib import Path
 
@@ -301,6 +302,7 @@ class CState:
 
     def __init__(self, module: CModule, P: list, n: int, n_modes: int):
         self.module = module
+        self.thread = threading.get_ident()    # the thread these buffers belong to
         self.P = np.array([v if isinstance(v, float) else
                            (float(v) if isinstance(v, int) else math.nan) for v in P],
                           dtype=float)

@@ -22,6 +22,7 @@ import copy
 import dataclasses
 import difflib
 import math
+import threading
 import warnings
 from dataclasses import dataclass
 from typing import Mapping
@@ -276,7 +277,7 @@ class System:
         return self
 
     def _c_state(self):
-        import threading
+        """This thread's :class:`~pvgraph.cbackend.CState` (buffers and parameters)."""
         st = self._cst
         me = threading.get_ident()
         if st is not None and st.thread == me:
@@ -286,7 +287,6 @@ class System:
         st = states.get(me)
         if st is None or st.module is not self._cmod:
             st = states[me] = CState(self._cmod, self._P, self.n, len(self.modes))
-            st.thread = me
         self._cst = st
         return st
 
@@ -594,7 +594,7 @@ class System:
                 raise ParameterError(
                     f"{self.name}: cannot change structural parameter(s) without compiling "
                     "again: " + "; ".join(structural) + ". Use with_params(..., "
-                    f"recompile=True) or build and compile the circuit with the new values.")
+                    "recompile=True) or build and compile the circuit with the new values.")
             warnings.warn(RecompileWarning(
                 f"{self.name}: compiling again, structural parameter(s) changed: "
                 + "; ".join(structural)), stacklevel=2)
