@@ -94,8 +94,6 @@ def compile_dae(residual, y0, yp0=None, *, names=None, name: str = "dae",
     yp = [E.Expr("der", (), nm) for nm in names]
     try:
         rows = list(residual(E.Expr("time"), y, yp, _Lib()))
-    except PvgraphError:
-        raise
     except TypeError as exc:
         raise PvgraphError(f"compile_dae: tracing {getattr(residual, '__name__', residual)} "
                            f"failed ({exc}); it must take (t, y, yp, lib) and use lib's "
