@@ -612,3 +612,64 @@ void pv_interpolate(const pv_state *s, double t, double *y, double *yp)
                                 1, 0., yp, 1);
     }
 }
+
+/* The integration loop of solve_dae around uneventful steps (keep in step with _Run in
+   cstep.py). Steps are taken while no event function can have crossed zero: after each,
+   the outputs of the step are written -- with t_eval, y and y' interpolated at every
+   t_eval[i] <= tn into row i of out_y, out_yp; without, (tn, y, y') into row `count` of
+   out_t, out_y, out_yp -- and the end of the interval is tested as the Python loop does.
+   Returns ADV_END (the end was reached, outputs written), ADV_PAUSE (before a step: the step
+   limit nst_limit is reached or the output rows are full), ADV_EVENTS (a step was taken whose
+   events the Python code must evaluate or locate; its outputs are not written) or ADV_FAIL
+   (the step failed; step_code is pv_step's code). */
+enum { ADV_END = 0, ADV_PAUSE = 1, ADV_EVENTS = 2, ADV_FAIL = 3 };
+
+typedef struct {
+    i64 nst_limit;
+    double t_end, end_tol;
+    const double *t_eval;
+    i64 n_eval, i_eval;
+    double *out_t, *out_y, *out_yp;
+    i64 cap, count, quiet, step_code;
+    double *g_pair0, *g_pair1;
+} pv_run;
+
+int pv_advance(pv_state *s, pv_run *r)
+{
+    const i64 n = s->n;
+    const size_t row = (size_t) n * sizeof(double);
+    for (;;) {
+        if (s->nst >= r->nst_limit) return ADV_PAUSE;
+        if (r->t_eval == NULL && r->count >= r->cap) return ADV_PAUSE;
+        int code = pv_step(s);
+        if (code != STEP_OK) {
+            r->step_code = code;
+            return ADV_FAIL;
+        }
+        if (s->ev != NULL) {
+            if (s->ev_state != 1) return ADV_EVENTS;
+            /* CStepIntegrator.events_quiet: the values just written are the next step's
+               old values, the other array of the pair takes the new ones */
+            double *w = s->g_new;
+            s->g_old = w;
+            s->g_new = w == r->g_pair1 ? r->g_pair0 : r->g_pair1;
+            r->quiet++;
+        }
+        const double tn = s->tn;
+        if (r->t_eval != NULL) {
+            while (r->i_eval < r->n_eval && r->t_eval[r->i_eval] <= tn) {
+                const i64 i = r->i_eval;
+                pv_interpolate(s, r->t_eval[i], r->out_y + i * n, r->out_yp + i * n);
+                r->i_eval = i + 1;
+            }
+        }
+        else {
+            const i64 c = r->count;
+            r->out_t[c] = tn;
+            memcpy(r->out_y + c * n, s->yy, row);
+            memcpy(r->out_yp + c * n, s->yp, row);
+            r->count = c + 1;
+        }
+        if (r->t_end - tn <= r->end_tol * (fabs(tn) + fabs(s->hused))) return ADV_END;
+    }
+}

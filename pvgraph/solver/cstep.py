@@ -48,7 +48,7 @@ from pvgraph.errors import SolverError
 from pvgraph.solver.ida import (HARMONIC, JACOBIAN_FAIL, MAX_ORDER, SETUP_FAIL, SOLVER_NAME,
                                 IDAIntegrator, _nonfinite_entries)
 
-__all__ = ["CStepIntegrator", "kernel", "c_system_of"]
+__all__ = ["CStepIntegrator", "kernel", "c_system_of", "c_run"]
 
 STEP_OK, STEP_HMIN, STEP_ERR_FAILS, STEP_CONV_FAILS, STEP_PYERR = range(5)
 FAIL_BY_PYTHON = -1
@@ -82,6 +82,19 @@ class _State(ctypes.Structure):
         + [(k, _i64) for k in ("ev_m", "ev_state")])
 
 
+class _Run(ctypes.Structure):
+    """The integration loop's arguments and results (``pv_run`` in cstep.c)."""
+
+    _fields_ = ([("nst_limit", _i64)] + [(k, _dbl) for k in ("t_end", "end_tol")]
+                + [("t_eval", _vp)] + [(k, _i64) for k in ("n_eval", "i_eval")]
+                + [(k, _vp) for k in ("out_t", "out_y", "out_yp")]
+                + [(k, _i64) for k in ("cap", "count", "quiet", "step_code")]
+                + [(k, _vp) for k in ("g_pair0", "g_pair1")])
+
+
+ADV_END, ADV_PAUSE, ADV_EVENTS, ADV_FAIL = range(4)
+
+
 _SETUP = ctypes.CFUNCTYPE(ctypes.c_int, _dbl, _dbl, _dbl)
 _SOLVE = ctypes.CFUNCTYPE(ctypes.c_int)
 
@@ -89,9 +102,10 @@ _SOLVE = ctypes.CFUNCTYPE(ctypes.c_int)
 class _Kernel:
     """The compiled step and the BLAS / LAPACK routines it calls."""
 
-    def __init__(self, step, interp, ddot, dgemv, daxpy, dgetrs, dgetrf, blas64):
+    def __init__(self, step, interp, advance, ddot, dgemv, daxpy, dgetrs, dgetrf, blas64):
         self.step = step
         self.interp = interp
+        self.advance = advance
         self.ddot, self.dgemv, self.daxpy, self.dgetrs = ddot, dgemv, daxpy, dgetrs
         self.dgetrf = dgetrf
         self.blas64 = blas64
@@ -165,7 +179,10 @@ def _load():
     interp = lib.pv_interpolate
     interp.argtypes = [ctypes.POINTER(_State), _dbl, _vp, _vp]
     interp.restype = None
-    k = _Kernel(step, interp, *_numpy_blas()[:3], _scipy_lapack("dgetrs"), _scipy_lapack("dgetrf"),
+    advance = lib.pv_advance
+    advance.argtypes = [ctypes.POINTER(_State), ctypes.POINTER(_Run)]
+    advance.restype = ctypes.c_int
+    k = _Kernel(step, interp, advance, *_numpy_blas()[:3], _scipy_lapack("dgetrs"), _scipy_lapack("dgetrf"),
                 _numpy_blas()[3])
     _self_check(k)
     return k
@@ -479,8 +496,9 @@ class CStepIntegrator(IDAIntegrator):
         self._g_bound = g
         return True
 
-    def step(self):
-        """Take one successful step towards ``t_bound``; raise SolverError on failure."""
+    def _before(self):
+        """Point the kernel at this thread's C buffers, the current modes and the events'
+        values before the step."""
         s = self._s
         system = self._system
         st = system._c_state()
@@ -493,8 +511,11 @@ class CStepIntegrator(IDAIntegrator):
         tracker = self._tracker
         if tracker is not None and tracker.g is not self._g_bound:
             self._bind_events(tracker.g)
-        serial = s.fail_serial
-        code = self._kernel.step(self._sref)
+        return s.fail_serial
+
+    def _after(self, code, serial):
+        """Counters, failure records and errors after the kernel's step(s)."""
+        s = self._s
         if s.c_setups:
             # the counters of the evaluator and the LU solver the C setups stand for
             self.jacobian.nje += s.c_setups
@@ -518,6 +539,64 @@ class CStepIntegrator(IDAIntegrator):
         if code == STEP_CONV_FAILS:
             self._raise_newton(int(s.err_status), int(s.err_count), s.err_t, s.err_h)
         raise SolverError(f"{SOLVER_NAME}: the C step returned {code}", t=s.tn, h=s.hh)
+
+    def step(self):
+        """Take one successful step towards ``t_bound``; raise SolverError on failure."""
+        serial = self._before()
+        self._after(self._kernel.step(self._sref), serial)
+
+    def can_advance(self, tracker):
+        """Can :meth:`advance` run the integration loop for these events (None: none)?"""
+        return self.c_interpolate and (tracker is None or self._tracker is tracker)
+
+    def advance(self, run):
+        """Take steps in C as the integration loop of ``solve_dae`` would while no event
+        function can have crossed zero, writing the outputs (``pv_advance`` in cstep.c);
+        ``run`` is a :class:`_Run`. Returns ADV_END, ADV_PAUSE or ADV_EVENTS (the last step
+        taken, its events, outputs and end test left to the caller); raises SolverError as
+        ``step`` does."""
+        serial = self._before()
+        tracker = self._tracker
+        if tracker is not None:
+            run.g_pair0, run.g_pair1 = self._g_addr
+        run.quiet = 0
+        status = self._kernel.advance(self._sref, ctypes.byref(run))
+        if run.quiet:
+            # what events_quiet did after each of these steps
+            s = self._s
+            tracker.nroot += tracker.m * run.quiet
+            k = 0 if s.g_old == self._g_addr[0] else 1
+            tracker.g = self._g_bound = self._g_pair[k]
+            self._g_new = self._g_pair[1 - k]
+        self._after(run.step_code if status == ADV_FAIL else STEP_OK, serial)
+        return status
+
+
+RUN_ROWS = 256      # output rows of the loop in C between two visits of the Python loop
+
+
+def c_run(integ, n, t_end, t_eval, nst_limit):
+    """The arguments of :meth:`CStepIntegrator.advance` for ``solve_dae``'s loop: outputs at
+    ``t_eval`` (rows of arrays of all of them) or at every step (blocks of RUN_ROWS rows;
+    the caller takes them and resets ``count``), the step limit ``nst_limit``."""
+    from pvgraph.solver.ida import UROUND
+    from pvgraph.solver.solve import END_FUZZ
+    run = _Run()
+    run.nst_limit = nst_limit
+    run.t_end, run.end_tol = t_end, END_FUZZ * UROUND
+    if t_eval is not None:
+        run.t_eval_array = t_eval = np.ascontiguousarray(t_eval, dtype=float)
+        run.t_eval, run.n_eval = t_eval.ctypes.data, t_eval.size
+        rows = t_eval.size
+    else:
+        run.t_eval, run.n_eval = None, 0
+        rows = RUN_ROWS
+        run.t_rows = np.empty(rows)
+        run.out_t = run.t_rows.ctypes.data
+    run.y_rows, run.yp_rows = np.empty((rows, n)), np.empty((rows, n))
+    run.out_y, run.out_yp = run.y_rows.ctypes.data, run.yp_rows.ctypes.data
+    run.cap = rows
+    return run
 
 
 def _compiled_dense_jacobian(system, jacobian):

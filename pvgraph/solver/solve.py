@@ -12,7 +12,7 @@ import numpy as np
 
 from pvgraph.errors import InitializationError, SolverError
 from pvgraph.solver.events import EventTracker, normalize_events
-from pvgraph.solver.cstep import make_integrator
+from pvgraph.solver.cstep import ADV_END, ADV_PAUSE, c_run as _c_run, make_integrator
 from pvgraph.solver.ida import SOLVER_NAME, UROUND, initial_step
 from pvgraph.solver.initial import start_values
 from pvgraph.solver.linalg import JacobianEvaluator, LUSolver
@@ -289,6 +289,11 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     steps_at_start = integ.nst
     end_state = None            # state after an action exactly at t_end
 
+    # the C step can run the loop itself between steps whose events need the Python code
+    run = (_c_run(integ, n, t_end, t_eval, steps_at_start + max_steps)
+           if dense is None and hasattr(integ, "advance") and integ.can_advance(tracker)
+           else None)
+
     while True:
         if integ.nst - steps_at_start >= max_steps:
             raise SolverError(
@@ -296,7 +301,29 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
                 f"{integ.hh:.3g}) before t_end = {t_end:.9g}; raise max_steps or check "
                 "the model for fast oscillations or chattering events.",
                 t=integ.tn, h=integ.hh)
-        integ.step()
+        if run is not None:
+            i_from = run.i_eval = i_eval
+            status = integ.advance(run)
+            if t_eval is None:
+                m = run.count
+                if m:
+                    ts.extend(run.t_rows[:m].tolist())
+                    ys.extend(run.y_rows[:m].copy())
+                    yps.extend(run.yp_rows[:m].copy())
+                    run.count = 0
+            else:
+                i_eval = run.i_eval
+                ts.extend(t_eval[i_from:i_eval])
+                ys.extend(run.y_rows[i_from:i_eval])
+                yps.extend(run.yp_rows[i_from:i_eval])
+            if status == ADV_END:
+                hit = None
+                break
+            if status == ADV_PAUSE:
+                continue
+            # ADV_EVENTS: a step was taken; its events, outputs and end test follow here
+        else:
+            integ.step()
         t_old, tn = integ.t_old, integ.tn
         if dense is not None:
             dense.append(t_old, tn, integ.kused, integ.psi, integ.phi)

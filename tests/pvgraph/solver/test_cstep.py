@@ -33,15 +33,23 @@ def _cache(tmp_path_factory, monkeypatch):
 
 @pytest.fixture
 def c_steps(monkeypatch):
-    """Counts the steps the C kernel takes."""
+    """Counts the steps the C kernel takes (one at a time, or in the loop in C)."""
     count = {"n": 0}
-    step = cstep.CStepIntegrator.step
+    step, advance = cstep.CStepIntegrator.step, cstep.CStepIntegrator.advance
 
     def counted(self):
         count["n"] += 1
         return step(self)
 
+    def counted_advance(self, run):
+        before = self.nst
+        try:
+            return advance(self, run)
+        finally:
+            count["n"] += self.nst - before
+
     monkeypatch.setattr(cstep.CStepIntegrator, "step", counted)
+    monkeypatch.setattr(cstep.CStepIntegrator, "advance", counted_advance)
     return count
 
 
@@ -400,7 +408,15 @@ def test_events_after_the_step_in_c_with_mode_changes_and_zeros(monkeypatch):
         calls["quiet" if out else "python"] += 1
         return out
 
+    advance = cstep.CStepIntegrator.advance
+
+    def counted_advance(self, run):         # steps found quiet in the loop in C
+        out = advance(self, run)
+        calls["quiet"] += run.quiet
+        return out
+
     monkeypatch.setattr(cstep.CStepIntegrator, "events_quiet", counted)
+    monkeypatch.setattr(cstep.CStepIntegrator, "advance", counted_advance)
     c = Circuit("relay")
     c.add("r", Relay(rate=1.0))
     s = c.compile(backend="c")
@@ -421,3 +437,29 @@ def test_events_after_the_step_in_c_with_mode_changes_and_zeros(monkeypatch):
     # every internal step as output
     a, b = both(lambda cs: (s.reset_modes(), simulate(s, 4.5, rtol=1e-6, c_step=cs))[1])
     assert_identical(a, b)
+
+
+def test_the_loop_in_c_flushes_outputs_and_stops_at_max_steps(monkeypatch, c_steps):
+    # solve_dae's loop runs in C between eventful steps (CStepIntegrator.advance); its
+    # output rows come in blocks (RUN_ROWS), and the step limit stops it where the Python
+    # loop stops, with the same error
+    monkeypatch.setattr(cstep, "RUN_ROWS", 7)
+    s = _pump_volume_orifice().compile(backend="c")
+    a, b = both(lambda cs: simulate(s, 2.0, rtol=1e-7, c_step=cs))
+    assert_identical(a, b)
+    assert c_steps["n"] == b.stats["nsteps"] > 7 * 20
+    assert b.t.size == b.stats["nsteps"] + 1
+    # many output times inside one step, and output times exactly at steps' ends
+    t_steps = b.t[10:14]
+    t_eval = np.unique(np.concatenate([np.linspace(0.0, 2.0, 4001), t_steps]))
+    a, b = both(lambda cs: simulate(s, 2.0, rtol=1e-7, t_eval=t_eval, c_step=cs))
+    assert_identical(a, b)
+    assert np.array_equal(b.t, t_eval)
+    errors = []
+    for cs in (False, None):
+        with pytest.raises(SolverError, match="max_steps = 30") as info:
+            solve_dae(s.residual, (0.0, 2.0), s.y0, s.yp0, rtol=1e-7, max_steps=30,
+                      jac=s.solver_jacobian(), jac_sparsity=s.jac_sparsity,
+                      algebraic=s.algebraic, c_step=cs)
+        errors.append(str(info.value))
+    assert errors[0] == errors[1]
