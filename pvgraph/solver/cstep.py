@@ -19,7 +19,11 @@ compiled ones, the kernel evaluates them at the end of each step (``pv_events``)
 can have changed sign, the loop takes the new values from it instead of evaluating them
 itself (:meth:`CStepIntegrator.events_quiet`); otherwise the Python code evaluates and
 decides as before. The interpolant of the last step (outputs at ``t_eval``, event location)
-is evaluated in C as well.
+is evaluated in C as well. Between steps that need the Python code (a candidate crossing, an
+event action, a pause for output rows), the integration loop itself runs in C
+(:meth:`CStepIntegrator.advance`, ``pv_advance``): steps, the events' bookkeeping, the outputs
+(interpolated at ``t_eval`` or every step) and the end-of-interval test, as the Python loop
+does them, so a run without eventful steps makes one call into C.
 
 The numbers are the Python step's, bit for bit: every operation is the one numpy performs, in
 the same order, and the library routines are the very ones numpy and scipy call (numpy's BLAS
