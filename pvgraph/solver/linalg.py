@@ -252,13 +252,28 @@ class LUSolver:
 
     ``factor`` returns 0 on success, ``j + 1`` when column ``j`` has a zero pivot, or -1
     when a sparse factorisation reports exact singularity without a column.
+
+    ``kind="c"`` factorises dense matrices with :class:`pvgraph.solver.clu.SparseLU` instead
+    of getrf (the same partial pivoting, sparse elimination in C, a column order chosen for
+    ``pattern``, or for the nonzeros of the first matrix); sparse matrices still go to SuperLU.
     """
 
-    def __init__(self):
+    def __init__(self, kind="lapack", pattern=None):
+        if kind not in ("lapack", "c"):
+            raise ValueError(f"LUSolver kind {kind!r}: use 'lapack' or 'c'")
+        self.kind = kind
+        self.pattern = pattern
         self.nlu = 0
         self._lu = None
         self._piv = None
         self._splu = None
+        self._clu = None
+        if kind == "c":
+            from pvgraph.solver import clu
+            if not clu.available():
+                from pvgraph.cbackend import CBackendError
+                raise CBackendError(f"LUSolver(kind='c') needs the sparse LU kernel "
+                                    f"(pvgraph/solver/clu.c): {clu.load_error()}")
 
     def factor(self, m):
         """Factorise m in place (dense) or by SuperLU (sparse); return the status code."""
@@ -274,14 +289,30 @@ class LUSolver:
         self._splu = None
         if not np.all(np.isfinite(m)):
             return -1
+        if self.kind == "c":
+            return self._factor_c(m)
         lu, piv, info = _GETRF(m, overwrite_a=True)
         self._lu, self._piv = lu, piv
         return int(info)
+
+    def _factor_c(self, m):
+        """The dense matrix m by the C sparse LU (a column order made for the first size)."""
+        n = m.shape[0]
+        if self._clu is None or self._clu.n != n:
+            from pvgraph.solver.clu import SparseLU
+            pattern = self.pattern
+            if pattern is None or pattern.shape != (n, n):
+                pattern = m != 0
+            self._clu = SparseLU(n, pattern)
+        self._lu = None
+        return self._clu.factor(m)
 
     def solve(self, b):
         """Solve with the last factorisation."""
         if self._splu is not None:
             return self._splu.solve(b)
+        if self._lu is None and self._clu is not None:
+            return self._clu.solve(b)
         x, _ = _GETRS(self._lu, self._piv, b)
         return x
 
