@@ -13,7 +13,8 @@
  * A dense iteration matrix of a compiled Jacobian (System.jacobian_dense) is evaluated by the
  * compiled pv_jacobian, scattered into a zeroed column-major matrix as numpy's
  * J[rows, cols] = values and factorised by scipy's LAPACK dgetrf (the routine scipy's getrf
- * calls), as the Python code does. Anything else -- finite-difference or sparse matrices, and
+ * calls) or by the sparse LU of clu.c, as the Python code does (LUSolver's kind). Anything
+ * else -- finite-difference or sparse matrices, and
  * any matrix with a non-finite entry or a zero pivot (to report it) -- is evaluated and
  * factorised by the Python code (a callback), which also raises every error from the codes
  * returned here.
@@ -99,7 +100,14 @@ typedef struct {
     const i64 *ev_idx;
     double *ev_buf, *g_old, *g_new;
     i64 ev_m, ev_state;
+    /* the sparse LU of clu.c (lu_ctx == NULL: LAPACK); lu_c: the factors to solve with are
+       its last ones */
+    void *lu_ctx, *lu_factor, *lu_solve;
+    i64 lu_c;
 } pv_state;
+
+typedef i64 (*clu_factor_fn)(void *, const double *);
+typedef void (*clu_solve_fn)(const void *, double *);
 
 /* numpy's pairwise summation (loops_utils.h.src), 8 accumulators, blocks of 128 */
 static double pairwise(const double *a, i64 n)
@@ -186,6 +194,11 @@ static void predict(pv_state *s, i64 kk, const double *gamma)
 /* LUSolver.solve: dense by dgetrs here, sparse (SuperLU) by the Python code */
 static int lu_solve(pv_state *s, double *x)
 {
+    if (s->lu_c) {
+        memcpy(x, s->r, (size_t) s->n * sizeof(double));
+        ((clu_solve_fn) s->lu_solve)(s->lu_ctx, x);
+        return 0;
+    }
     if (s->lu == NULL) return ((solve_fn) s->solve)();
     int n = (int) s->n, one = 1, info = 0;
     char trans = 'N';
@@ -206,11 +219,19 @@ static int dense_setup(pv_state *s, double tn, double cj)
         if (!isfinite(v[k])) return -1;
     memset(a, 0, (size_t) (n * n) * sizeof(double));
     for (i64 k = 0; k < nnz; k++) a[s->cols[k] * n + s->rows[k]] = v[k];
+    if (s->lu_ctx != NULL) {
+        if (((clu_factor_fn) s->lu_factor)(s->lu_ctx, a) != 0) return -1;
+        s->lu = NULL;
+        s->lu_c = 1;
+        s->c_setups++;
+        return 0;
+    }
     int ni = (int) n, info = 0;
     ((dgetrf_fn) s->dgetrf)(&ni, &ni, a, &ni, s->c_piv, &info);
     if (info != 0) return -1;
     s->lu = a;
     s->piv = s->c_piv;
+    s->lu_c = 0;
     s->c_setups++;
     return 0;
 }

@@ -7,7 +7,9 @@ Newton iteration, error test, failures with their step and order reductions, ord
 selection, history update and error weights -- in one C call that evaluates the compiled
 residual directly. A dense iteration matrix from the compiled Jacobian
 (``System.jacobian_dense``, the one ``simulate`` uses up to ``System.DENSE_MAX`` unknowns) is
-evaluated by the compiled ``pv_jacobian`` and factorised by LAPACK in C too, counted in the
+evaluated by the compiled ``pv_jacobian`` and factorised in C too -- by LAPACK, or by the
+sparse LU of :mod:`pvgraph.solver.clu` when the run's ``LUSolver`` is of kind ``"c"`` (the
+C route's default, also for systems above ``DENSE_MAX``) -- counted in the
 evaluator's ``nje`` and the LU solver's ``nlu``; any other matrix (finite differences, sparse)
 is evaluated and factorised by the Python code (``_setup``, called back from C), and so is a
 matrix with a non-finite entry or a zero pivot, to report it. Errors are raised by the Python
@@ -83,7 +85,9 @@ class _State(ctypes.Structure):
         + [(k, _vp) for k in ("jac", "dgetrf", "rows", "cols", "jout", "c_lu", "c_piv")]
         + [(k, _i64) for k in ("nnz", "c_setups")]
         + [(k, _vp) for k in ("ev", "ev_idx", "ev_buf", "g_old", "g_new")]
-        + [(k, _i64) for k in ("ev_m", "ev_state")])
+        + [(k, _i64) for k in ("ev_m", "ev_state")]
+        + [(k, _vp) for k in ("lu_ctx", "lu_factor", "lu_solve")]
+        + [("lu_c", _i64)])
 
 
 class _Run(ctypes.Structure):
@@ -186,7 +190,8 @@ def _load():
     advance = lib.pv_advance
     advance.argtypes = [ctypes.POINTER(_State), ctypes.POINTER(_Run)]
     advance.restype = ctypes.c_int
-    k = _Kernel(step, interp, advance, *_numpy_blas()[:3], _scipy_lapack("dgetrs"), _scipy_lapack("dgetrf"),
+    k = _Kernel(step, interp, advance, *_numpy_blas()[:3], _scipy_lapack("dgetrs"),
+                _scipy_lapack("dgetrf"),
                 _numpy_blas()[3])
     _self_check(k)
     return k
@@ -373,6 +378,10 @@ class CStepIntegrator(IDAIntegrator):
             s.dgetrf = kern.dgetrf
             for name in ("rows", "cols", "jout", "c_lu", "c_piv"):
                 setattr(s, name, getattr(self, "_" + name).ctypes.data)
+            if lu.kind == "c":
+                clu = lu.c_factoriser(n)
+                s.lu_ctx, s.lu_factor, s.lu_solve = clu.ctx, clu.factor_address, \
+                    clu.solve_address
         self._cst = None
         self._sref = ctypes.byref(s)
         self._tracker = None
@@ -407,9 +416,19 @@ class CStepIntegrator(IDAIntegrator):
                 self._fail = (SETUP_FAIL, info)
                 return 2
             lu = self.lu._lu
+            self._s.lu_c = 0
             if self.lu._splu is not None:
                 self._lu_keep = self._piv1 = None
                 self._s.lu = self._s.piv = None       # solved by _solve_from_c
+                return 0
+            if lu is None and self.lu._clu is not None:     # the C sparse LU's factors
+                clu = self.lu._clu
+                self._lu_keep = self._piv1 = None
+                self._s.lu = self._s.piv = None
+                s = self._s
+                s.lu_ctx, s.lu_factor, s.lu_solve = clu.ctx, clu.factor_address, \
+                    clu.solve_address
+                s.lu_c = 1
                 return 0
             if lu.dtype != np.float64 or not lu.flags.f_contiguous:
                 raise SolverError("the C step needs LAPACK's column-major LU factors")
@@ -604,11 +623,12 @@ def c_run(integ, n, t_end, t_eval, nst_limit):
 
 
 def _compiled_dense_jacobian(system, jacobian):
-    """Is the iteration matrix ``system.jacobian_dense``, dense, from the compiled pv_jacobian?"""
+    """Is the iteration matrix the system's compiled Jacobian (``jacobian_dense``, or
+    ``jacobian`` made dense for the C sparse LU), so pv_jacobian can evaluate it in C?"""
     from pvgraph.system import System
     jac = jacobian.jac
     return (getattr(jac, "__self__", None) is system
-            and getattr(jac, "__func__", None) is System.jacobian_dense
+            and getattr(jac, "__func__", None) in (System.jacobian_dense, System.jacobian)
             and not jacobian.sparse and not jacobian.detect
             and system._cmod.n_jac == len(system._rows) == len(system._cols))
 

@@ -44,7 +44,7 @@ ARMIJO = 1e-4
 
 
 def start_values(fun, t0, y0, yp0, mode, algebraic, alg_given, jacobian, rtol, atol,
-                 t_span_length, h0, var_names=None):
+                 t_span_length, h0, var_names=None, lu_kind="lapack", lu_pattern=None):
     """Consistent (y, y') at t0 for the integrators, according to ``calc_initial``.
 
     ``mode`` None checks the given values and keeps them. ``"algebraic"`` without an
@@ -52,8 +52,9 @@ def start_values(fun, t0, y0, yp0, mode, algebraic, alg_given, jacobian, rtol, a
     within a tenth of the tolerance is kept as it is (a singular, non-diagonal dF/dy' such
     as the Transistor Amplifier's has no variable-wise split to solve for); otherwise the
     variables whose y' has an identically zero column in dF/dy' are taken as algebraic.
+    ``lu_kind`` and ``lu_pattern`` make the ``LUSolver`` of the Newton matrices.
     """
-    lu = LUSolver()
+    lu = LUSolver(lu_kind, pattern=lu_pattern)
     if mode is None:
         check_consistency(fun, t0, y0, yp0, jacobian, lu, h0, rtol, atol, var_names)
         return y0.copy(), yp0.copy()
@@ -66,7 +67,8 @@ def start_values(fun, t0, y0, yp0, mode, algebraic, alg_given, jacobian, rtol, a
         mask = np.zeros(y0.size, dtype=bool)
         mask[derivative_free_columns(jacobian, t0, y0, yp0, r)] = True
     return consistent_initial_conditions(fun, t0, y0, yp0, mode, mask, jacobian, rtol, atol,
-                                         t_span_length, var_names)
+                                         t_span_length, var_names, lu_kind=lu_kind,
+                                         lu_pattern=lu_pattern)
 
 
 def derivative_free_columns(jacobian, t, y, yp, r):
@@ -91,7 +93,8 @@ def _equation_names(r, var_names, count=3):
 
 
 def consistent_initial_conditions(fun, t0, y0, yp0, mode, algebraic, jacobian, rtol, atol,
-                                  t_span_length, var_names=None):
+                                  t_span_length, var_names=None, lu_kind="lapack",
+                                  lu_pattern=None):
     """Solve for consistent (y, y') at t0.
 
     Parameters
@@ -115,6 +118,10 @@ def consistent_initial_conditions(fun, t0, y0, yp0, mode, algebraic, jacobian, r
         Length of the integration interval; sets the time scale of y' unknowns.
     var_names : list of str or None
         Names used in error messages.
+    lu_kind : {"lapack", "c"}
+        The ``LUSolver`` kind of the Newton matrices.
+    lu_pattern : sparse matrix, optional
+        Their sparsity pattern (the C LU's column order is chosen for it).
 
     Returns
     -------
@@ -132,7 +139,7 @@ def consistent_initial_conditions(fun, t0, y0, yp0, mode, algebraic, jacobian, r
         raise ValueError(f"calc_initial must be 'algebraic', 'all' or None, got {mode!r}")
     cyp = 1.0 - cy
     hic = IC_TIME_FRACTION * abs(t_span_length)
-    lu = LUSolver()
+    lu = LUSolver(lu_kind, pattern=lu_pattern)
     r = np.asarray(fun(t0, y, yp), dtype=float)
     for _ in range(IC_MAX_ITERS):
         if not np.all(np.isfinite(r)):

@@ -31,6 +31,8 @@ SPARSE_MIN_N = 100          # below this size dense LAPACK LU beats SuperLU
 SQRT_UROUND = math.sqrt(np.finfo(float).eps)
 ZERO_COLUMN_GROWTH = 1e6    # a difference column lost to rounding is retried this much larger
 
+CLU_ORDER_MIN_N = 32        # the C LU orders columns to reduce fill from this size on
+_COLUMN_ORDERS = {}         # the C LU's column order by sparsity pattern (64 most recent)
 _GETRF, _GETRS = get_lapack_funcs(("getrf", "getrs"), (np.empty(1),))
 
 
@@ -97,6 +99,7 @@ class JacobianEvaluator:
         self.nfev = 0       # residual calls spent on finite differences
         self.nje = 0        # Jacobian evaluations (user calls or FD matrices)
         self.sparse = False
+        self.dense_only = False     # dense matrices whatever the size (the C sparse LU)
         self.groups = None
         if sparsity is not None:
             self._use_pattern(sparsity)
@@ -111,7 +114,7 @@ class JacobianEvaluator:
         pattern.eliminate_zeros()
         pattern.sort_indices()
         self.pattern = pattern
-        self.sparse = n >= SPARSE_MIN_N
+        self.sparse = n >= SPARSE_MIN_N and not self.dense_only
         if jac is None:
             self.groups = column_groups(pattern)
             rows = pattern.indices
@@ -299,13 +302,32 @@ class LUSolver:
         """The dense matrix m by the C sparse LU (a column order made for the first size)."""
         n = m.shape[0]
         if self._clu is None or self._clu.n != n:
-            from pvgraph.solver.clu import SparseLU
-            pattern = self.pattern
-            if pattern is None or pattern.shape != (n, n):
-                pattern = m != 0
-            self._clu = SparseLU(n, pattern)
+            self._clu = self.c_factoriser(n)
         self._lu = None
         return self._clu.factor(m)
+
+    def c_factoriser(self, n):
+        """The :class:`~pvgraph.solver.clu.SparseLU` of ``kind="c"`` for n x n matrices, its
+        column order chosen for ``pattern`` (remembered for the pattern: the solvers of one
+        system share it), or the natural order without one and below ``CLU_ORDER_MIN_N``
+        unknowns (where a fill-reducing order saves nothing: the factors pivot as LAPACK's)."""
+        from pvgraph.solver.clu import SparseLU, column_order
+        if self._clu is not None and self._clu.n == n:
+            return self._clu
+        pattern = self.pattern
+        if pattern is None or pattern.shape != (n, n) or n < CLU_ORDER_MIN_N:
+            self._clu = SparseLU(n)
+            return self._clu
+        pattern = sp.csc_matrix(pattern)
+        key = (n, pattern.indptr.tobytes(), pattern.indices.tobytes())
+        perm = _COLUMN_ORDERS.get(key)
+        if perm is None:
+            perm = column_order(pattern)
+            if len(_COLUMN_ORDERS) >= 64:
+                _COLUMN_ORDERS.pop(next(iter(_COLUMN_ORDERS)))
+            _COLUMN_ORDERS[key] = perm
+        self._clu = SparseLU(n, perm_c=perm)
+        return self._clu
 
     def solve(self, b):
         """Solve with the last factorisation."""

@@ -12,7 +12,8 @@ import numpy as np
 
 from pvgraph.errors import InitializationError, SolverError
 from pvgraph.solver.events import EventTracker, normalize_events
-from pvgraph.solver.cstep import ADV_END, ADV_PAUSE, c_run as _c_run, make_integrator
+from pvgraph.solver.cstep import ADV_END, ADV_PAUSE, make_integrator
+from pvgraph.solver.cstep import c_run as _c_run, c_system_of as _c_system_of
 from pvgraph.solver.ida import SOLVER_NAME, UROUND, initial_step
 from pvgraph.solver.initial import start_values
 from pvgraph.solver.linalg import JacobianEvaluator, LUSolver
@@ -59,7 +60,7 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
               jac_sparsity=None, events=None, t_eval=None, max_step=None, first_step=None,
               calc_initial="algebraic", max_order=5, max_steps=100_000, var_names=None,
               dense_output=False, suppress_alg=False, no_growth_after_failure=None,
-              nonnegative=None, newton_iterate_retry=None, c_step=None):
+              nonnegative=None, newton_iterate_retry=None, c_step=None, linear_solver=None):
     """Solve the implicit DAE F(t, y, y') = 0 of index at most one.
 
     Parameters
@@ -102,6 +103,14 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
         a C compiler is found (sparse iteration matrices are solved by SuperLU, called back
         from C); False: always the Python step; True: the C step, ValueError where it does
         not apply.
+    linear_solver : {None, "lapack", "c"}
+        How the iteration matrix is factorised. ``"lapack"``: dense LAPACK ``getrf`` below
+        100 unknowns (or without a sparsity pattern), SuperLU above. ``"c"``: the sparse LU
+        with LAPACK's partial pivoting in C (:mod:`pvgraph.solver.clu`) up to ``CLU_MAX_N``
+        unknowns, SuperLU above; needs a C compiler. None (default): ``"c"`` where the
+        residual is a C-route ``System.residual`` and the kernel builds, otherwise
+        ``"lapack"``. Both pivot alike, so results differ only by rounding; the Python
+        and the C step give the same numbers bit for bit with either.
     jac : callable, optional
         ``jac(t, y, yp, c) -> dF/dy + c dF/dy'`` as ndarray or scipy.sparse matrix. Finite
         differences when None.
@@ -204,7 +213,26 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
                           algebraic is not None, bool(suppress_alg), jac, jac_sparsity, event_list, t_eval,
                           max_step, first_step, calc_initial, int(max_order), int(max_steps),
                           var_names, dense_output, no_growth_after_failure, nonneg,
-                          newton_iterate_retry, c_step)
+                          newton_iterate_retry, c_step, linear_solver)
+
+
+CLU_MAX_N = 600     # largest system the C sparse LU takes (it is given dense matrices)
+
+
+def _lu_kind(linear_solver, residual, n):
+    """The LUSolver kind for ``linear_solver`` (see solve_dae)."""
+    if linear_solver not in (None, "lapack", "c"):
+        raise ValueError(f"linear_solver must be None, 'lapack' or 'c', got {linear_solver!r}")
+    if linear_solver == "lapack" or n > CLU_MAX_N:
+        return "lapack"
+    from pvgraph.solver import clu
+    if linear_solver == "c":
+        if not clu.available():
+            from pvgraph.cbackend import CBackendError
+            raise CBackendError("linear_solver='c' needs the sparse LU kernel "
+                                f"(pvgraph/solver/clu.c): {clu.load_error()}")
+        return "c"
+    return "c" if _c_system_of(residual) is not None and clu.available() else "lapack"
 
 
 def _nonnegative(nonnegative, n, y0, var_names):
@@ -226,7 +254,7 @@ def _nonnegative(nonnegative, n, y0, var_names):
 def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, suppress_alg, jac,
                jac_sparsity, event_list, t_eval, max_step, first_step, calc_initial,
                max_order, max_steps, var_names, dense_output, no_growth_after_failure=None,
-               nonnegative=None, newton_iterate_retry=None, c_step=None):
+               nonnegative=None, newton_iterate_retry=None, c_step=None, linear_solver=None):
     """The integration loop behind ``solve_dae`` (arguments already checked)."""
     n = y0.size
     r0 = residual(t0, y0, yp0)
@@ -242,7 +270,15 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     else:
         fun = residual
     jacobian = JacobianEvaluator(fun, n, jac, jac_sparsity, typical=atol / rtol)
-    lu = LUSolver()
+    lu_kind = _lu_kind(linear_solver, residual, n)
+    if lu_kind == "c":
+        jacobian.dense_only = True      # the C LU takes dense matrices (n <= CLU_MAX_N)
+        jacobian.sparse = False
+    lu_pattern = getattr(jacobian, "pattern", None)
+    if lu_kind == "c" and lu_pattern is None:
+        system = _c_system_of(residual)
+        lu_pattern = system.jac_sparsity if system is not None else None
+    lu = LUSolver(lu_kind, pattern=lu_pattern)
     # IDA's suppressalg (see the suppress_alg parameter)
     error_mask = ((~alg_mask).astype(float)
                   if suppress_alg and alg_given and alg_mask.any() else None)
@@ -253,7 +289,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         h0 = min(initial_step(yp, ewt if error_mask is None else ewt * error_mask,
                               span, max_step, first_step), span)
         return start_values(counted, t, y, yp, mode, alg_mask, alg_given, jacobian, rtol,
-                            atol, span, h0, var_names)
+                            atol, span, h0, var_names, lu_kind=lu_kind, lu_pattern=lu_pattern)
 
     y, yp = initialise(t0, y0, yp0, calc_initial)
 
