@@ -279,12 +279,14 @@ class CStepIntegrator(IDAIntegrator):
     ``dense_setup`` (True): evaluate and factorise a dense compiled Jacobian in C; False
     calls the Python code back for every iteration matrix. ``step_events`` (True): evaluate
     compiled event functions after each step in C (:meth:`watch_events`). ``c_interpolate``
-    (True): ``interpolate`` (outputs, event location) in C.
+    (True): ``interpolate`` (outputs, event location) in C. ``c_loop`` (True): ``solve_dae``
+    runs its loop in C between eventful steps (:meth:`advance`).
     """
 
     dense_setup = True
     step_events = True
     c_interpolate = True
+    c_loop = True
 
     tn, t_bound, hh, hused = _field("tn"), _field("t_bound"), _field("hh"), _field("hused")
     cj, cjlast, cjold, ck = _field("cj"), _field("cjlast"), _field("cjold"), _field("ck")
@@ -570,7 +572,8 @@ class CStepIntegrator(IDAIntegrator):
 
     def can_advance(self, tracker):
         """Can :meth:`advance` run the integration loop for these events (None: none)?"""
-        return self.c_interpolate and (tracker is None or self._tracker is tracker)
+        return self.c_loop and self.c_interpolate and (tracker is None
+                                                       or self._tracker is tracker)
 
     def advance(self, run):
         """Take steps in C as the integration loop of ``solve_dae`` would while no event
