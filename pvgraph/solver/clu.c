@@ -52,6 +52,9 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 typedef int32_t idx;
 
@@ -175,6 +178,24 @@ static idx dfs(pv_lu *c, idx j, idx top, idx stamp)
     return top;
 }
 
+/* whether the 8 doubles at v are all +0.0 or -0.0: the OR of their bits, sign bits aside,
+   is zero (integer operations: a subnormal counts, whatever the floating-point mode) */
+static int all_zero8(const double *v)
+{
+#ifdef __SSE2__
+    __m128i o = _mm_or_si128(_mm_or_si128(_mm_loadu_si128((const __m128i *) v),
+                                          _mm_loadu_si128((const __m128i *) (v + 2))),
+                             _mm_or_si128(_mm_loadu_si128((const __m128i *) (v + 4)),
+                                          _mm_loadu_si128((const __m128i *) (v + 6))));
+    o = _mm_and_si128(o, _mm_set1_epi64x(INT64_MAX));
+    return _mm_movemask_epi8(_mm_cmpeq_epi32(o, _mm_setzero_si128())) == 0xFFFF;
+#else
+    uint64_t u[8];
+    memcpy(u, v, sizeof u);
+    return ((u[0] | u[1] | u[2] | u[3] | u[4] | u[5] | u[6] | u[7]) << 1) == 0;
+#endif
+}
+
 /* any non-finite entry in columns q[k..n) of a */
 static int nonfinite_from(const pv_lu *c, const double *a, int64_t k)
 {
@@ -208,16 +229,10 @@ int64_t pv_lu_factor(void *vctx, const double *a)
         }
         const double *col = a + (int64_t) c->q[k] * n;
         idx top = n;
-        /* the column's entries into x, and the rows they reach; blocks of 8 are skipped
-           when the bits of their entries, sign bits aside, OR to zero (all +-0.0) */
+        /* the column's entries into x, and the rows they reach; blocks of 8 zeros skipped */
         for (idx i0 = 0; i0 < n; i0 += 8) {
             idx i1 = i0 + 8 < n ? i0 + 8 : n;
-            if (i1 - i0 == 8) {
-                uint64_t u[8];
-                memcpy(u, col + i0, sizeof u);
-                if (((u[0] | u[1] | u[2] | u[3] | u[4] | u[5] | u[6] | u[7]) << 1) == 0)
-                    continue;
-            }
+            if (i1 - i0 == 8 && all_zero8(col + i0)) continue;
             for (idx i = i0; i < i1; i++) {
                 double v = col[i];
                 if (v != 0.0) {

@@ -51,6 +51,7 @@ from pvgraph.errors import PvgraphError
 
 __all__ = ["SparseLU", "available", "load_error", "column_order"]
 
+N_MAX = 46340       # PV_LU_NMAX in clu.c: n * n fits its 32-bit indices
 ORDERINGS = ("COLAMD", "MMD_ATA", "MMD_AT_PLUS_A", "NATURAL")
 _i64, _i32p, _dp, _vp = ctypes.c_int64, ctypes.POINTER(ctypes.c_int32), \
     ctypes.POINTER(ctypes.c_double), ctypes.c_void_p
@@ -171,8 +172,11 @@ class SparseLU:
             raise CBackendError(f"the sparse LU kernel (pvgraph/solver/clu.c) is unavailable: "
                                 f"{_lib_error}")
         n = int(n)
-        if n < 1:
-            raise ValueError(f"SparseLU needs n >= 1, got {n}")
+        if not 1 <= n <= N_MAX:
+            raise ValueError(f"SparseLU needs 1 <= n <= {N_MAX}, got {n}")
+        if pattern is not None and np.shape(pattern) != (n, n):
+            raise ValueError(f"SparseLU: the pattern has shape {np.shape(pattern)}, expected "
+                             f"({n}, {n})")
         if perm_c is None:
             perm_c = (column_order(pattern, ordering) if pattern is not None
                       else np.arange(n, dtype=np.int64))
@@ -192,6 +196,11 @@ class SparseLU:
         self.factor_address = ctypes.cast(lib.pv_lu_factor, _vp).value
         self.solve_address = ctypes.cast(lib.pv_lu_solve, _vp).value
         self.info = None
+        # buffers whose addresses are taken once (numpy's .ctypes costs a microsecond a call)
+        self._a = np.empty((n, n), order="F")
+        self._a_addr = self._a.ctypes.data
+        self._x = np.empty(n)
+        self._x_addr = self._x.ctypes.data
 
     def factor(self, m):
         """Factorise the dense matrix ``m`` (not modified); return 0, j + 1 or -1.
@@ -202,26 +211,34 @@ class SparseLU:
         if a.shape != (self.n, self.n):
             raise ValueError(f"SparseLU.factor: matrix of shape {a.shape}, expected "
                              f"({self.n}, {self.n})")
-        if not a.flags.f_contiguous:
-            a = np.asfortranarray(a)
-        info = int(self._factor(self.ctx, a.ctypes.data))
+        if a.flags.f_contiguous:
+            addr = a.ctypes.data
+        else:
+            self._a[...] = a
+            addr = self._a_addr
+        info = int(self._factor(self.ctx, addr))
         if info == -2:
             raise MemoryError("SparseLU.factor: no memory for the LU factors")
         self.info = info
         return info
 
     def solve(self, b):
-        """Solve A x = b (b of shape (n,)) with the last factorisation; a new array."""
+        """Solve A x = b (b of shape (n,)) with the last factorisation; a new array.
+
+        One solve at a time: the right-hand side goes through a buffer of this object.
+        """
         if self.info != 0:
             from pvgraph.errors import SolverError
             raise SolverError("SparseLU.solve: no successful factorisation to solve with "
                               f"(last factor returned {self.info})")
-        x = np.array(b, dtype=np.float64)
-        if x.shape != (self.n,):
-            raise ValueError(f"SparseLU.solve: right-hand side of shape {x.shape}, expected "
+        b = np.asarray(b)
+        if b.shape != self._x.shape:
+            raise ValueError(f"SparseLU.solve: right-hand side of shape {b.shape}, expected "
                              f"({self.n},)")
-        self._solve(self.ctx, x.ctypes.data)
-        return x
+        x = self._x
+        x[...] = b
+        self._solve(self.ctx, self._x_addr)
+        return x.copy()
 
     # ---- the factors, for inspection ----------------------------------------------------
 

@@ -232,6 +232,22 @@ def test_sizes_one_and_two():
     assert lu.factor(np.array([[1.0, 2.0], [2.0, 4.0]])) in (1, 2)
 
 
+def test_subnormal_and_negative_zero_entries():
+    # the smallest subnormal is an entry (a pivot), -0.0 is not; in a block of zeros too
+    n = 20
+    a = np.eye(n)
+    a[13, 13] = 5e-324
+    a[3, 11] = -0.0
+    lu = clu.SparseLU(n, perm_c=np.arange(n))
+    assert lu.factor(a) == 0 and sla.lapack.dgetrf(a)[2] == 0
+    assert lu.nnz == n
+    b = np.ones(n)
+    b[13] = 5e-324
+    assert np.array_equal(lu.solve(b), np.ones(n))
+    a[13, 13] = -0.0
+    assert lu.factor(a) == 14 == sla.lapack.dgetrf(a)[2]
+
+
 def test_entries_outside_the_pattern_are_factorised():
     # the kernel reads the structure from each matrix: the pattern only chose the column order
     rng = np.random.default_rng(11)
@@ -277,10 +293,14 @@ def test_bad_arguments_are_named():
         lu = clu.SparseLU(3)
         lu.factor(np.eye(3))
         lu.solve(np.ones(4))
+    with pytest.raises(ValueError, match="right-hand side"):
+        lu.solve(np.ones(1))           # no broadcasting
     with pytest.raises(ValueError, match="unknown column ordering"):
         clu.column_order(np.eye(3), "AMD")
-    with pytest.raises(ValueError, match="n >= 1"):
+    with pytest.raises(ValueError, match="1 <= n"):
         clu.SparseLU(0)
+    with pytest.raises(ValueError, match="pattern has shape"):
+        clu.SparseLU(3, np.eye(4))
 
 
 def test_the_c_entry_points_by_address():
@@ -400,3 +420,27 @@ def test_rig_steps_with_either_lu_agree(rig):
     assert nst_a == nst_b == 60 and nlu_a == nlu_b > 5
     assert abs(t_a - t_b) <= 1e-9 * t_a
     assert np.all(np.abs(y_a - y_b) <= 1e-3 * (1e-6 * np.abs(y_a) + atol))
+
+
+def test_machine_cycle_iteration_matrix_against_dense_lapack():
+    # the machine of examples/machine_cycle.py (184 unknowns: SuperLU's size in the solver)
+    from pvgraph.circuits.machine import build_machine
+    from pvgraph.simulate import simulate
+    s = build_machine().compile()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = simulate(s, 0.02, rtol=1e-5)
+    t, y, yp = float(res.t[-1]), res.y[-1], res.yp[-1]
+    lu = clu.SparseLU(s.n, s.jac_sparsity)
+    rng = np.random.default_rng(184)
+    for cj in (1e5, 1e3):
+        j = s.jacobian_dense(t, y, yp, cj)
+        assert lu.factor(j) == 0
+        b = rng.standard_normal(s.n) * s.nominal
+        x = lu.solve(b)
+        x_ref = sla.lu_solve(sla.lu_factor(j), b)
+        assert np.linalg.norm(x - x_ref) <= 1e-12 * np.linalg.norm(x_ref)
+        _, piv, _ = sla.lapack.dgetrf(j[:, lu.perm_c])
+        assert np.array_equal(lu.ipiv, piv)
+        ref = splu(sp.csc_matrix(j))
+        assert lu.nnz <= 1.2 * (ref.L.nnz + ref.U.nnz - s.n)
