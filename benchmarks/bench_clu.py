@@ -7,7 +7,9 @@ column plus the diagonal, values uniform in [-1, 1]) of 300 and 1000 unknowns.
 
 Timings, medians over interleaved rounds:
 
-* from C: a timing loop compiled here calls ``pv_lu_factor`` / ``pv_lu_solve`` and scipy's own
+* from C: a timing loop compiled here calls ``pv_lu_factor`` (a context factorising from
+  scratch, ``reuse=False``, and one reusing the structure of its last factorisation, as in a
+  simulation) / ``pv_lu_solve`` and scipy's own
   LAPACK ``dgetrf`` / ``dgetrs`` (the routines ``scipy.linalg.cython_lapack`` exports, which
   ``cstep.c`` calls) through function pointers. getrf overwrites its input, so its loop copies
   the matrix first (a ``memcpy`` of n x n doubles, timed alone too); the sparse LU reads the
@@ -191,7 +193,8 @@ def measure(label, a, pattern, lib, rounds):
     ref = splu(csc)
     fill["SuperLU"] = ref.L.nnz + ref.U.nnz - n
     lu = clu.SparseLU(n, pattern)
-    assert lu.factor(a) == 0
+    scratch = clu.SparseLU(n, perm_c=lu.perm_c, reuse=False)
+    assert lu.factor(a) == 0 and scratch.factor(a) == 0
     b0 = np.random.default_rng(0).standard_normal(n)
     b = b0.copy()
     lf, piv, info = getrf_py(a)
@@ -209,6 +212,8 @@ def measure(label, a, pattern, lib, rounds):
     rf, rs = (20, 400) if big else (300, 4000)
     cases = {
         "C clu factor": lambda: lib.time_clu_factor(fa, lu.ctx, a.ctypes.data, rf),
+        "C clu factor, scratch": lambda: lib.time_clu_factor(fa, scratch.ctx, a.ctypes.data,
+                                                             rf),
         "C getrf (copy + dgetrf)": lambda: lib.time_getrf(dgetrf, a.ctypes.data, work.ctypes.data,
                                                           ipiv.ctypes.data, n, max(rf // 10, 3)),
         "C copy n x n": lambda: lib.time_copy(a.ctypes.data, work.ctypes.data, n, rf),
@@ -284,13 +289,14 @@ def main():
         f = r["fill"]
         print(f"| {r['label']} | {r['n']} | {r['nnz']} | {f['COLAMD']} | {f['MMD_ATA']} | "
               f"{f['MMD_AT_PLUS_A']} | {f['NATURAL']} | {f['SuperLU']} |")
-    print("\nFactor [us], medians; ratio = getrf / clu\n")
-    print("| matrix | n | C: clu | C: copy + dgetrf | (copy alone) | ratio | Python: SparseLU | "
-          "Python: getrf | ratio | Python: splu |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("\nFactor [us], medians; ratio = getrf / clu (same structure)\n")
+    print("| matrix | n | C: clu, from scratch | C: clu, same structure | C: copy + dgetrf | "
+          "(copy alone) | ratio | Python: SparseLU | Python: getrf | ratio | Python: splu |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         t = r["t"]
-        print(f"| {r['label']} | {r['n']} | {t['C clu factor']:.1f} | "
+        print(f"| {r['label']} | {r['n']} | {t['C clu factor, scratch']:.1f} | "
+              f"{t['C clu factor']:.1f} | "
               f"{t['C getrf (copy + dgetrf)']:.1f} | {t['C copy n x n']:.1f} | "
               f"{t['C getrf (copy + dgetrf)'] / t['C clu factor']:.1f} | "
               f"{t['Py SparseLU.factor']:.1f} | {t['Py getrf']:.1f} | "

@@ -23,9 +23,15 @@ For C code elsewhere (function pointers and a context):
 
 ``SparseLU.ctx``, ``SparseLU.factor_address`` and ``SparseLU.solve_address`` are these as
 integers; the context lives as long as its ``SparseLU``. Its layout (``pv_lu`` in ``clu.c``,
-mirrored by :class:`_Context`): int64 ``n, status, step, lnz, unz, lcap, ucap``, then int32
-arrays ``q, p, pinv, ipiv`` (column order, pivot rows, their inverse, LAPACK's 0-based
-``ipiv``), then L and U by columns (``Lp, Li, Up, Ui`` int32; ``Lx, Ux, Ud`` double), scratch.
+mirrored by :class:`_Context`): int64 ``n, status, step, lnz, unz, anz, lcap, ucap, acap,
+reuse, nreused, restart``, then int32 arrays ``q, p, pinv, ipiv`` (column order, pivot rows,
+their inverse, LAPACK's 0-based ``ipiv``), L, U and A's structure by columns (``Lp, Li, Up, Ui,
+Ap, Ai`` int32), ``Lx, Ux, Ud`` (double), scratch.
+
+A factorisation starts on the structure of the last successful one: while a column has the
+same nonzero rows and takes the same pivot, it is eliminated without a search (the usual case
+for the iteration matrices of one simulation); from the first column that differs, with the
+searches. The factors are those of a factorisation from scratch, bit for bit, either way.
 
 References
 ----------
@@ -60,8 +66,10 @@ _i64, _i32p, _dp, _vp = ctypes.c_int64, ctypes.POINTER(ctypes.c_int32), \
 class _Context(ctypes.Structure):
     """The leading fields of ``pv_lu`` (clu.c)."""
 
-    _fields_ = ([(k, _i64) for k in ("n", "status", "step", "lnz", "unz", "lcap", "ucap")]
-                + [(k, _i32p) for k in ("q", "p", "pinv", "ipiv", "Lp", "Li", "Up", "Ui")]
+    _fields_ = ([(k, _i64) for k in ("n", "status", "step", "lnz", "unz", "anz", "lcap",
+                                     "ucap", "acap", "reuse", "nreused", "restart")]
+                + [(k, _i32p) for k in ("q", "p", "pinv", "ipiv", "Lp", "Li", "Up", "Ui", "Ap",
+                                        "Ai")]
                 + [(k, _dp) for k in ("Lx", "Ux", "Ud")])
 
 
@@ -158,6 +166,9 @@ class SparseLU:
         The column order itself: ``perm_c[k]`` is the column eliminated at step k.
     ordering : str
         ``"COLAMD"`` (default), ``"MMD_ATA"``, ``"MMD_AT_PLUS_A"`` or ``"NATURAL"``.
+    reuse : bool
+        Start each factorisation on the structure of the last one (default; the factors are
+        the same either way, only the time differs).
 
     Raises
     ------
@@ -165,7 +176,7 @@ class SparseLU:
         When the kernel cannot be built (no C compiler, or it fails).
     """
 
-    def __init__(self, n, pattern=None, *, perm_c=None, ordering="COLAMD"):
+    def __init__(self, n, pattern=None, *, perm_c=None, ordering="COLAMD", reuse=True):
         lib = library()
         if lib is None:
             from pvgraph.cbackend import CBackendError
@@ -191,6 +202,7 @@ class SparseLU:
         self.ctx = int(ctx)
         self._finalizer = weakref.finalize(self, lib.pv_lu_free, ctx)
         self._c = _Context.from_address(self.ctx)
+        self._c.reuse = 1 if reuse else 0
         self._factor = lib.pv_lu_factor
         self._solve = lib.pv_lu_solve
         self.factor_address = ctypes.cast(lib.pv_lu_factor, _vp).value
@@ -241,6 +253,16 @@ class SparseLU:
         return x.copy()
 
     # ---- the factors, for inspection ----------------------------------------------------
+
+    @property
+    def nreused(self):
+        """Factorisations done entirely on the previous structure (no search)."""
+        return int(self._c.nreused)
+
+    @property
+    def restart(self):
+        """Step where the last factorisation began to search: 0 from scratch, -1 none."""
+        return int(self._c.restart)
 
     @property
     def nnz(self):

@@ -444,3 +444,87 @@ def test_machine_cycle_iteration_matrix_against_dense_lapack():
         assert np.array_equal(lu.ipiv, piv)
         ref = splu(sp.csc_matrix(j))
         assert lu.nnz <= 1.2 * (ref.L.nnz + ref.U.nnz - s.n)
+
+
+def assert_same_factorisation(lu, ref, b):
+    """Bit-for-bit equality of two contexts' last factorisations and solves."""
+    assert lu.info == ref.info
+    if lu.info != 0:
+        return
+    assert np.array_equal(lu.ipiv, ref.ipiv) and np.array_equal(lu.perm_r, ref.perm_r)
+    for x, y in zip(lu.factors(), ref.factors()):
+        assert np.array_equal(x.toarray(), y.toarray())
+    assert np.array_equal(lu.solve(b), ref.solve(b))
+
+
+def test_reuse_of_the_last_structure_gives_the_factors_from_scratch():
+    # a context that starts on its last structure against one that always searches: same
+    # statuses, pivots, factors and solutions, bit for bit, through value changes, a pivot
+    # change half way, structure changes, a singular and a non-finite matrix
+    rng = np.random.default_rng(21)
+    n = 70
+    a = random_sparse(n, 0.05, rng) + np.diag(rng.uniform(1.0, 2.0, n))
+    lu = clu.SparseLU(n, a != 0)
+    ref = clu.SparseLU(n, perm_c=lu.perm_c, reuse=False)
+    b = rng.standard_normal(n)
+    sequence = [a]
+    scaled = a * (1.0 + 1e-3 * (a != 0) * rng.standard_normal((n, n)))   # the same pivots
+    sequence.append(scaled)
+    assert lu.factor(a) == 0
+    k = n // 2
+    low, _ = lu.factors()
+    rows_below = low.indices[low.indptr[k]:low.indptr[k + 1]]
+    rows_below = rows_below[rows_below > k]
+    assert rows_below.size > 0
+    other = lu.perm_r[rows_below[0]]             # a row the pivot of step k was chosen over
+    pivot_change = a.copy()
+    pivot_change[other, lu.perm_c[k]] = 1e6 * (1.0 + abs(a[other, lu.perm_c[k]]))
+    sequence += [pivot_change, a]
+    more = a.copy()
+    more[3, lu.perm_c[n - 5]] = 0.7                # an entry outside the structure
+    fewer = a.copy()
+    fewer[np.flatnonzero(a[:, lu.perm_c[n - 9]])[0], lu.perm_c[n - 9]] = 0.0   # one less
+    moved = a.copy()                               # as many entries, one in another row
+    col = lu.perm_c[n - 12]
+    rows = np.flatnonzero(a[:, col])
+    free = np.setdiff1d(np.arange(n), rows)
+    moved[free[0], col], moved[rows[-1], col] = a[rows[-1], col], 0.0
+    singular = a.copy()
+    singular[:, lu.perm_c[40]] = 0.0
+    nan = a.copy()
+    nan[5, lu.perm_c[60]] = np.nan
+    sequence += [more, a, fewer, fewer * 2.0, moved, singular, a, nan, a, a]
+    restarts = []
+    for m in sequence:
+        info = lu.factor(m)
+        assert info == ref.factor(m)
+        restarts.append(lu.restart)
+        assert_same_factorisation(lu, ref, b)
+        if info == 0:
+            assert backward_error(m, lu.solve(b), b) <= 10 * EPS
+    # every path was taken: reused whole (-1), searched from a middle step, from scratch (0)
+    assert restarts[1] == -1 and restarts[-1] == -1 and lu.nreused >= 3
+    assert restarts[2] == k                        # the pivot changed at step k
+    assert restarts[4] == n - 5 and restarts[6] == n - 9 and restarts[8] == n - 12
+    assert ref.nreused == 0 and ref.restart == 0
+    # the pivot change is LAPACK's
+    _, piv, _ = sla.lapack.dgetrf(pivot_change[:, lu.perm_c])
+    assert ref.factor(pivot_change) == 0 and np.array_equal(ref.ipiv, piv)
+
+
+def test_reuse_on_rig_matrices_along_a_run(rig):
+    # iteration matrices of the rig at the states and step sizes of a run: the C context that
+    # reuses its structure and one that does not agree bit for bit
+    from pvgraph.simulate import simulate
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = simulate(rig, 0.05, rtol=1e-6)
+    lu = clu.SparseLU(rig.n, rig.jac_sparsity)
+    ref = clu.SparseLU(rig.n, perm_c=lu.perm_c, reuse=False)
+    b = rig.nominal.copy()
+    idx = np.linspace(0, len(res.t) - 1, 25).astype(int)
+    for i, cj in zip(idx, np.geomspace(1e6, 1e2, idx.size)):
+        j = rig.jacobian_dense(float(res.t[i]), res.y[i], res.yp[i], cj)
+        assert lu.factor(j) == ref.factor(j) == 0
+        assert_same_factorisation(lu, ref, b)
+    assert lu.nreused >= 10
