@@ -29,9 +29,10 @@ their inverse, LAPACK's 0-based ``ipiv``), L, U and A's structure by columns (``
 Ap, Ai`` int32), ``Lx, Ux, Ud`` (double), scratch.
 
 A factorisation starts on the structure of the last successful one: while a column has the
-same nonzero rows and takes the same pivot, it is eliminated without a search (the usual case
-for the iteration matrices of one simulation); from the first column that differs, with the
-searches. The factors are those of a factorisation from scratch, bit for bit, either way.
+same nonzero rows and takes the same pivot, it is eliminated without a search; from the first
+column that differs, with the searches (in a run of the PVG 32 rig test 2, 15 of 46
+factorisations needed no search at all). The factors are those of a factorisation from
+scratch, bit for bit, either way.
 
 References
 ----------
@@ -53,14 +54,13 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from pvgraph.errors import PvgraphError
-
 __all__ = ["SparseLU", "available", "load_error", "column_order"]
 
 N_MAX = 46340       # PV_LU_NMAX in clu.c: n * n fits its 32-bit indices
 ORDERINGS = ("COLAMD", "MMD_ATA", "MMD_AT_PLUS_A", "NATURAL")
-_i64, _i32p, _dp, _vp = ctypes.c_int64, ctypes.POINTER(ctypes.c_int32), \
-    ctypes.POINTER(ctypes.c_double), ctypes.c_void_p
+_i64, _vp = ctypes.c_int64, ctypes.c_void_p
+_i32p = ctypes.POINTER(ctypes.c_int32)
+_dp = ctypes.POINTER(ctypes.c_double)
 
 
 class _Context(ctypes.Structure):
@@ -106,7 +106,7 @@ def library():
         if _lib is None and _lib_error is None:
             try:
                 _lib = _load()
-            except (PvgraphError, OSError) as exc:
+            except Exception as exc:     # no compiler, a failed build, a missing symbol
                 _lib_error = f"{type(exc).__name__}: {exc}"
     return _lib
 

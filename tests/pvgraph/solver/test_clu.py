@@ -335,6 +335,17 @@ def test_without_a_compiler_it_reports_what_is_missing(monkeypatch):
     LUSolver()          # the default needs no compiler
 
 
+def test_a_compiler_that_cannot_run_is_reported(monkeypatch, tmp_path):
+    monkeypatch.setattr(clu, "_lib", None)
+    monkeypatch.setattr(clu, "_lib_error", None)
+    monkeypatch.setenv("PVGRAPH_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
+    assert not clu.available()
+    assert "cannot run the C compiler" in clu.load_error()
+    with pytest.raises(cbackend.CBackendError, match="sparse LU kernel.*no-such-cc"):
+        clu.SparseLU(4)
+
+
 def test_lusolver_kind_c_against_lapack():
     rng = np.random.default_rng(8)
     n = 60
