@@ -12,7 +12,10 @@
  *
  * The kernel depends on no pattern: the structure is read from the nonzero entries of the
  * matrix at each factorisation, so any matrix factors correctly; the column order only
- * decides the fill.
+ * decides the fill. A factorisation starts on the structure of the last successful one
+ * (reuse = 1, the default): while a column has the same nonzero rows and takes the same
+ * pivot, it is eliminated without a search; at the first column that differs, the searches
+ * take over. Either way the factors are those of a factorisation from scratch, bit for bit.
  *
  * API (the signatures other C code calls through function pointers):
  *   void   *pv_lu_new(int64_t n, const int64_t *perm_c)   a context, or NULL (bad arguments,
@@ -31,16 +34,20 @@
  *                                                         context's scratch vector: one solve at
  *                                                         a time per context.
  *
- * Context layout (pv_lu below; clu.py mirrors the leading fields with ctypes):
+ * Context layout (pv_lu below, fields in this order; clu.py mirrors the leading ones):
  *   int64_t n, status (last factor's return), step (its zero-pivot step, else -1),
- *           lnz, unz (entries of L and U below / above the diagonal), lcap, ucap (capacity);
- *   int32_t *q      (n)  column order,            *p (n)   p[k] = row of A pivoted at step k,
- *           *pinv   (n)  pinv[p[k]] = k,          *ipiv (n) LAPACK's ipiv (0-based: row k was
- *                                                          swapped with row ipiv[k] at step k),
- *           *Lp (n+1), *Li (lcap)   L by columns, strictly lower, row indices as steps,
- *           *Up (n+1), *Ui (ucap)   U by columns, strictly upper, row indices as steps;
- *   double  *Lx (lcap), *Ux (ucap), *Ud (n) (U's diagonal), *x (n) (scratch, zero between calls),
- *           *w (n) (the solve's scratch);
+ *           lnz, unz, anz (entries of L below and U above the diagonal, entries of A),
+ *           lcap, ucap, acap (capacities), reuse (1: start on the last structure),
+ *           nreused (factorisations done without a search), restart (step where the last
+ *           factorisation searched from: 0 from scratch, -1 none);
+ *   int32_t *q (n) column order, *p (n) p[k] = row of A pivoted at step k, *pinv (n)
+ *           pinv[p[k]] = k, *ipiv (n) LAPACK's ipiv, 0-based (row k was swapped with row
+ *           ipiv[k] at step k),
+ *           *Lp (n+1), *Li (lcap)  L by columns, strictly lower, row indices as steps,
+ *           *Up (n+1), *Ui (ucap)  U by columns, strictly upper, row indices as steps,
+ *           *Ap (n+1), *Ai (acap)  the nonzero rows of A[:, q[k]] (the last structure);
+ *   double  *Lx (lcap), *Ux (ucap), *Ud (n) (U's diagonal), *x (n) (scratch, zero between
+ *           calls), *w (n) (the solve's scratch);
  *   int32_t *pos, *row_at (n)  LAPACK's current row order, *xi (2n), *mark (n)  search scratch.
  *
  * References
@@ -52,13 +59,16 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 typedef int32_t idx;
 
 typedef struct {
-    int64_t n, status, step, lnz, unz, lcap, ucap;
+    int64_t n, status, step, lnz, unz, anz, lcap, ucap, acap, reuse, nreused, restart;
     idx *q, *p, *pinv, *ipiv;
-    idx *Lp, *Li, *Up, *Ui;
+    idx *Lp, *Li, *Up, *Ui, *Ap, *Ai;
     double *Lx, *Ux, *Ud, *x, *w;
     idx *pos, *row_at, *xi, *mark;
 } pv_lu;
@@ -69,8 +79,8 @@ void pv_lu_free(void *vctx)
 {
     pv_lu *c = (pv_lu *) vctx;
     if (c == NULL) return;
-    void *arrays[] = {c->q, c->p, c->pinv, c->ipiv, c->Lp, c->Li, c->Up, c->Ui, c->Lx, c->Ux,
-                      c->Ud, c->x, c->w, c->pos, c->row_at, c->xi, c->mark};
+    void *arrays[] = {c->q, c->p, c->pinv, c->ipiv, c->Lp, c->Li, c->Up, c->Ui, c->Ap, c->Ai,
+                      c->Lx, c->Ux, c->Ud, c->x, c->w, c->pos, c->row_at, c->xi, c->mark};
     for (size_t k = 0; k < sizeof arrays / sizeof arrays[0]; k++) free(arrays[k]);
     free(c);
 }
@@ -83,16 +93,19 @@ void *pv_lu_new(int64_t n, const int64_t *perm_c)
     size_t un = (size_t) n;
     c->n = n;
     c->status = 1;                      /* nothing factorised yet */
-    c->step = -1;
-    c->lcap = c->ucap = 4 * n + 16;     /* grows as needed */
+    c->step = c->restart = -1;
+    c->reuse = 1;
+    c->lcap = c->ucap = c->acap = 4 * n + 16;     /* grow as needed */
     c->q = malloc(un * sizeof(idx));
     c->p = malloc(un * sizeof(idx));
     c->pinv = malloc(un * sizeof(idx));
     c->ipiv = malloc(un * sizeof(idx));
     c->Lp = calloc(un + 1, sizeof(idx));
     c->Up = calloc(un + 1, sizeof(idx));
+    c->Ap = calloc(un + 1, sizeof(idx));
     c->Li = malloc((size_t) c->lcap * sizeof(idx));
     c->Ui = malloc((size_t) c->ucap * sizeof(idx));
+    c->Ai = malloc((size_t) c->acap * sizeof(idx));
     c->Lx = malloc((size_t) c->lcap * sizeof(double));
     c->Ux = malloc((size_t) c->ucap * sizeof(double));
     c->Ud = calloc(un, sizeof(double));
@@ -102,9 +115,9 @@ void *pv_lu_new(int64_t n, const int64_t *perm_c)
     c->row_at = malloc(un * sizeof(idx));
     c->xi = malloc(2 * un * sizeof(idx));
     c->mark = malloc(un * sizeof(idx));
-    if (!c->q || !c->p || !c->pinv || !c->ipiv || !c->Lp || !c->Up || !c->Li || !c->Ui
-        || !c->Lx || !c->Ux || !c->Ud || !c->x || !c->w || !c->pos || !c->row_at || !c->xi
-        || !c->mark) {
+    if (!c->q || !c->p || !c->pinv || !c->ipiv || !c->Lp || !c->Up || !c->Ap || !c->Li
+        || !c->Ui || !c->Ai || !c->Lx || !c->Ux || !c->Ud || !c->x || !c->w || !c->pos
+        || !c->row_at || !c->xi || !c->mark) {
         pv_lu_free(c);
         return NULL;
     }
@@ -122,22 +135,22 @@ void *pv_lu_new(int64_t n, const int64_t *perm_c)
     return c;
 }
 
-/* room for `more` further entries in L (which = 0) or U (which = 1); 0, or -1 (no memory) */
-static int reserve(pv_lu *c, int which, int64_t more)
+/* room for `need` entries in the index array *pi (and the value array *px if given);
+   0, or -1 (no memory) */
+static int grow(idx **pi, double **px, int64_t *cap, int64_t need)
 {
-    int64_t used = which ? c->unz : c->lnz, cap = which ? c->ucap : c->lcap;
-    if (used + more <= cap) return 0;
-    int64_t ncap = 2 * cap;
-    if (ncap < used + more) ncap = used + more;
-    idx **pi = which ? &c->Ui : &c->Li;
-    double **px = which ? &c->Ux : &c->Lx;
+    if (need <= *cap) return 0;
+    int64_t ncap = 2 * *cap;
+    if (ncap < need) ncap = need;
     idx *ni = realloc(*pi, (size_t) ncap * sizeof(idx));
     if (ni == NULL) return -1;
     *pi = ni;
-    double *nx = realloc(*px, (size_t) ncap * sizeof(double));
-    if (nx == NULL) return -1;
-    *px = nx;
-    if (which) c->ucap = ncap; else c->lcap = ncap;
+    if (px != NULL) {
+        double *nx = realloc(*px, (size_t) ncap * sizeof(double));
+        if (nx == NULL) return -1;
+        *px = nx;
+    }
+    *cap = ncap;
     return 0;
 }
 
@@ -175,6 +188,24 @@ static idx dfs(pv_lu *c, idx j, idx top, idx stamp)
     return top;
 }
 
+/* whether the 8 doubles at v are all +0.0 or -0.0: the OR of their bits, sign bits aside,
+   is zero (integer operations: a subnormal counts, whatever the floating-point mode) */
+static int all_zero8(const double *v)
+{
+#ifdef __SSE2__
+    __m128i o = _mm_or_si128(_mm_or_si128(_mm_loadu_si128((const __m128i *) v),
+                                          _mm_loadu_si128((const __m128i *) (v + 2))),
+                             _mm_or_si128(_mm_loadu_si128((const __m128i *) (v + 4)),
+                                          _mm_loadu_si128((const __m128i *) (v + 6))));
+    o = _mm_and_si128(o, _mm_set1_epi64x(INT64_MAX));
+    return _mm_movemask_epi8(_mm_cmpeq_epi32(o, _mm_setzero_si128())) == 0xFFFF;
+#else
+    uint64_t u[8];
+    memcpy(u, v, sizeof u);
+    return ((u[0] | u[1] | u[2] | u[3] | u[4] | u[5] | u[6] | u[7]) << 1) == 0;
+#endif
+}
+
 /* any non-finite entry in columns q[k..n) of a */
 static int nonfinite_from(const pv_lu *c, const double *a, int64_t k)
 {
@@ -187,37 +218,32 @@ static int nonfinite_from(const pv_lu *c, const double *a, int64_t k)
     return 0;
 }
 
-int64_t pv_lu_factor(void *vctx, const double *a)
+/* The elimination with searches from step k0 on. Expects the state of steps < k0: pinv
+   (-1 for unpivoted rows), pos / row_at, L's columns with rows of A, lnz = Lp[k0],
+   unz = Up[k0], anz = Ap[k0], x zero, mark below k0. Records each column's nonzero rows
+   (Ap / Ai) for the next factorisation. */
+static int64_t factor_from(pv_lu *c, const double *a, idx k0)
 {
-    pv_lu *c = (pv_lu *) vctx;
     const idx n = (idx) c->n;
     idx *pinv = c->pinv, *pos = c->pos, *row_at = c->row_at, *mark = c->mark, *xi = c->xi;
     double *x = c->x;
     int64_t status = 0;
-    for (idx i = 0; i < n; i++) {
-        pinv[i] = -1;
-        pos[i] = row_at[i] = i;
-        mark[i] = -1;
-    }
-    c->lnz = c->unz = 0;
     c->step = -1;
-    for (idx k = 0; k < n; k++) {
-        if (reserve(c, 0, n) || reserve(c, 1, n)) {
+    for (idx k = k0; k < n; k++) {
+        if (grow(&c->Li, &c->Lx, &c->lcap, c->lnz + n) || grow(&c->Ui, &c->Ux, &c->ucap,
+                                                                 c->unz + n)
+            || grow(&c->Ai, NULL, &c->acap, c->anz + n)) {
             status = -2;
             break;
         }
+        idx *Ai = c->Ai;
+        int64_t anz = c->anz;
         const double *col = a + (int64_t) c->q[k] * n;
         idx top = n;
-        /* the column's entries into x, and the rows they reach; blocks of 8 are skipped
-           when the bits of their entries, sign bits aside, OR to zero (all +-0.0) */
+        /* the column's entries into x, and the rows they reach; blocks of 8 zeros skipped */
         for (idx i0 = 0; i0 < n; i0 += 8) {
             idx i1 = i0 + 8 < n ? i0 + 8 : n;
-            if (i1 - i0 == 8) {
-                uint64_t u[8];
-                memcpy(u, col + i0, sizeof u);
-                if (((u[0] | u[1] | u[2] | u[3] | u[4] | u[5] | u[6] | u[7]) << 1) == 0)
-                    continue;
-            }
+            if (i1 - i0 == 8 && all_zero8(col + i0)) continue;
             for (idx i = i0; i < i1; i++) {
                 double v = col[i];
                 if (v != 0.0) {
@@ -226,6 +252,7 @@ int64_t pv_lu_factor(void *vctx, const double *a)
                         break;
                     }
                     x[i] = v;
+                    Ai[anz++] = i;
                     if (mark[i] != k) top = dfs(c, i, top, k);
                 }
             }
@@ -235,6 +262,8 @@ int64_t pv_lu_factor(void *vctx, const double *a)
             for (idx px = top; px < n; px++) x[xi[px]] = 0.0;
             break;
         }
+        c->anz = anz;
+        c->Ap[k + 1] = (idx) anz;
         /* x -= L[:, j] x_j for the pivoted rows, in topological order */
         const idx *Lp = c->Lp, *Li = c->Li;
         const double *Lx = c->Lx;
@@ -303,9 +332,138 @@ int64_t pv_lu_factor(void *vctx, const double *a)
         idx *Li = c->Li;
         for (int64_t p = 0; p < c->lnz; p++) Li[p] = pinv[Li[p]];
     }
+    return status;
+}
+
+/* Leave the previous structure at step k: the state factor_from expects */
+static int64_t restart_at(pv_lu *c, const double *a, idx k)
+{
+    const idx n = (idx) c->n;
+    idx *Li = c->Li, *p = c->p, *pinv = c->pinv, *mark = c->mark;
+    for (int64_t s = 0; s < c->Lp[k]; s++) Li[s] = p[Li[s]];
+    for (idx i = 0; i < n; i++) {
+        pinv[i] = -1;
+        mark[i] = -1;
+    }
+    for (idx j = 0; j < k; j++) pinv[p[j]] = j;
+    c->lnz = c->Lp[k];
+    c->unz = c->Up[k];
+    c->anz = c->Ap[k];
+    c->restart = k;
+    return factor_from(c, a, k);
+}
+
+/* The elimination on the structure of the last factorisation: while each column's nonzero
+   rows are the ones it had and the pivot is the row it was, the reach, its topological order
+   and the candidates are the ones the searches would find, and so are the numbers; at the
+   first column where either differs, the searches take over (restart_at). */
+static int64_t refactor(pv_lu *c, const double *a)
+{
+    const idx n = (idx) c->n;
+    const idx *p = c->p, *Ap = c->Ap, *Ai = c->Ai, *Lp = c->Lp, *Li = c->Li, *Up = c->Up,
+              *Ui = c->Ui;
+    idx *pos = c->pos, *row_at = c->row_at;
+    double *Lx = c->Lx, *Ux = c->Ux, *x = c->x;
+    for (idx i = 0; i < n; i++) pos[i] = row_at[i] = i;
+    for (idx k = 0; k < n; k++) {
+        const double *col = a + (int64_t) c->q[k] * n;
+        idx t = Ap[k];
+        const idx tend = Ap[k + 1];
+        int same = 1, bad = 0;
+        for (idx i0 = 0; i0 < n && same && !bad; i0 += 8) {
+            idx i1 = i0 + 8 < n ? i0 + 8 : n;
+            if (i1 - i0 == 8 && all_zero8(col + i0)) continue;
+            for (idx i = i0; i < i1; i++) {
+                double v = col[i];
+                if (v != 0.0) {
+                    if (!isfinite(v)) {
+                        bad = 1;
+                        break;
+                    }
+                    if (t == tend || Ai[t] != i) {
+                        same = 0;
+                        break;
+                    }
+                    x[i] = v;
+                    t++;
+                }
+            }
+        }
+        if (bad || !same || t != tend) {
+            for (idx s = Ap[k]; s < t; s++) x[Ai[s]] = 0.0;
+            if (bad) {
+                c->step = -1;
+                return -1;
+            }
+            return restart_at(c, a, k);
+        }
+        /* x -= L[:, j] x_j in the order of U's column (topological), U's values */
+        for (idx u = Up[k]; u < Up[k + 1]; u++) {
+            idx j = Ui[u], r = p[j];
+            double xj = x[r];
+            x[r] = 0.0;
+            Ux[u] = xj;
+            for (idx s = Lp[j]; s < Lp[j + 1]; s++) x[p[Li[s]]] -= Lx[s] * xj;
+        }
+        /* the pivot among the candidates, as factor_from chooses it */
+        idx piv = p[k];
+        double amax = fabs(x[piv]);
+        for (idx s = Lp[k]; s < Lp[k + 1]; s++) {
+            idx i = p[Li[s]];
+            double tv = fabs(x[i]);
+            if (tv > amax || (tv == amax && pos[i] < pos[piv])) {
+                amax = tv;
+                piv = i;
+            }
+        }
+        if (piv != p[k] || amax <= 0.0) {
+            x[p[k]] = 0.0;
+            for (idx s = Lp[k]; s < Lp[k + 1]; s++) x[p[Li[s]]] = 0.0;
+            return restart_at(c, a, k);
+        }
+        double pivot = x[piv];
+        c->Ud[k] = pivot;
+        idx at = pos[piv], other = row_at[k];
+        c->ipiv[k] = at;
+        row_at[at] = other;
+        pos[other] = at;
+        row_at[k] = piv;
+        pos[piv] = k;
+        x[piv] = 0.0;
+        for (idx s = Lp[k]; s < Lp[k + 1]; s++) {
+            idx r = p[Li[s]];
+            Lx[s] = x[r] / pivot;
+            x[r] = 0.0;
+        }
+    }
+    c->nreused++;
+    c->restart = -1;
+    c->step = -1;
+    return 0;
+}
+
+int64_t pv_lu_factor(void *vctx, const double *a)
+{
+    pv_lu *c = (pv_lu *) vctx;
+    int64_t status;
+    if (c->reuse && c->status == 0) {
+        status = refactor(c, a);
+    } else {
+        const idx n = (idx) c->n;
+        for (idx i = 0; i < n; i++) {
+            c->pinv[i] = -1;
+            c->pos[i] = c->row_at[i] = i;
+            c->mark[i] = -1;
+        }
+        c->lnz = c->unz = c->anz = 0;
+        c->restart = 0;
+        status = factor_from(c, a, 0);
+    }
     c->status = status;
     return status;
 }
+
+
 
 void pv_lu_solve(const void *vctx, double *b)
 {

@@ -232,6 +232,22 @@ def test_sizes_one_and_two():
     assert lu.factor(np.array([[1.0, 2.0], [2.0, 4.0]])) in (1, 2)
 
 
+def test_subnormal_and_negative_zero_entries():
+    # the smallest subnormal is an entry (a pivot), -0.0 is not; in a block of zeros too
+    n = 20
+    a = np.eye(n)
+    a[13, 13] = 5e-324
+    a[3, 11] = -0.0
+    lu = clu.SparseLU(n, perm_c=np.arange(n))
+    assert lu.factor(a) == 0 and sla.lapack.dgetrf(a)[2] == 0
+    assert lu.nnz == n
+    b = np.ones(n)
+    b[13] = 5e-324
+    assert np.array_equal(lu.solve(b), np.ones(n))
+    a[13, 13] = -0.0
+    assert lu.factor(a) == 14 == sla.lapack.dgetrf(a)[2]
+
+
 def test_entries_outside_the_pattern_are_factorised():
     # the kernel reads the structure from each matrix: the pattern only chose the column order
     rng = np.random.default_rng(11)
@@ -277,10 +293,14 @@ def test_bad_arguments_are_named():
         lu = clu.SparseLU(3)
         lu.factor(np.eye(3))
         lu.solve(np.ones(4))
+    with pytest.raises(ValueError, match="right-hand side"):
+        lu.solve(np.ones(1))           # no broadcasting
     with pytest.raises(ValueError, match="unknown column ordering"):
         clu.column_order(np.eye(3), "AMD")
-    with pytest.raises(ValueError, match="n >= 1"):
+    with pytest.raises(ValueError, match="1 <= n"):
         clu.SparseLU(0)
+    with pytest.raises(ValueError, match="pattern has shape"):
+        clu.SparseLU(3, np.eye(4))
 
 
 def test_the_c_entry_points_by_address():
@@ -313,6 +333,17 @@ def test_without_a_compiler_it_reports_what_is_missing(monkeypatch):
     with pytest.raises(cbackend.CBackendError, match="kind='c'.*no C compiler"):
         LUSolver(kind="c")
     LUSolver()          # the default needs no compiler
+
+
+def test_a_compiler_that_cannot_run_is_reported(monkeypatch, tmp_path):
+    monkeypatch.setattr(clu, "_lib", None)
+    monkeypatch.setattr(clu, "_lib_error", None)
+    monkeypatch.setenv("PVGRAPH_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
+    assert not clu.available()
+    assert "cannot run the C compiler" in clu.load_error()
+    with pytest.raises(cbackend.CBackendError, match="sparse LU kernel.*no-such-cc"):
+        clu.SparseLU(4)
 
 
 def test_lusolver_kind_c_against_lapack():
@@ -400,3 +431,111 @@ def test_rig_steps_with_either_lu_agree(rig):
     assert nst_a == nst_b == 60 and nlu_a == nlu_b > 5
     assert abs(t_a - t_b) <= 1e-9 * t_a
     assert np.all(np.abs(y_a - y_b) <= 1e-3 * (1e-6 * np.abs(y_a) + atol))
+
+
+def test_machine_cycle_iteration_matrix_against_dense_lapack():
+    # the machine of examples/machine_cycle.py (184 unknowns: SuperLU's size in the solver)
+    from pvgraph.circuits.machine import build_machine
+    from pvgraph.simulate import simulate
+    s = build_machine().compile()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = simulate(s, 0.02, rtol=1e-5)
+    t, y, yp = float(res.t[-1]), res.y[-1], res.yp[-1]
+    lu = clu.SparseLU(s.n, s.jac_sparsity)
+    rng = np.random.default_rng(184)
+    for cj in (1e5, 1e3):
+        j = s.jacobian_dense(t, y, yp, cj)
+        assert lu.factor(j) == 0
+        b = rng.standard_normal(s.n) * s.nominal
+        x = lu.solve(b)
+        x_ref = sla.lu_solve(sla.lu_factor(j), b)
+        assert np.linalg.norm(x - x_ref) <= 1e-12 * np.linalg.norm(x_ref)
+        _, piv, _ = sla.lapack.dgetrf(j[:, lu.perm_c])
+        assert np.array_equal(lu.ipiv, piv)
+        ref = splu(sp.csc_matrix(j))
+        assert lu.nnz <= 1.2 * (ref.L.nnz + ref.U.nnz - s.n)
+
+
+def assert_same_factorisation(lu, ref, b):
+    """Bit-for-bit equality of two contexts' last factorisations and solves."""
+    assert lu.info == ref.info
+    if lu.info != 0:
+        return
+    assert np.array_equal(lu.ipiv, ref.ipiv) and np.array_equal(lu.perm_r, ref.perm_r)
+    for x, y in zip(lu.factors(), ref.factors()):
+        assert np.array_equal(x.toarray(), y.toarray())
+    assert np.array_equal(lu.solve(b), ref.solve(b))
+
+
+def test_reuse_of_the_last_structure_gives_the_factors_from_scratch():
+    # a context that starts on its last structure against one that always searches: same
+    # statuses, pivots, factors and solutions, bit for bit, through value changes, a pivot
+    # change half way, structure changes, a singular and a non-finite matrix
+    rng = np.random.default_rng(21)
+    n = 70
+    a = random_sparse(n, 0.05, rng) + np.diag(rng.uniform(1.0, 2.0, n))
+    lu = clu.SparseLU(n, a != 0)
+    ref = clu.SparseLU(n, perm_c=lu.perm_c, reuse=False)
+    b = rng.standard_normal(n)
+    sequence = [a]
+    scaled = a * (1.0 + 1e-3 * (a != 0) * rng.standard_normal((n, n)))   # the same pivots
+    sequence.append(scaled)
+    assert lu.factor(a) == 0
+    k = n // 2
+    low, _ = lu.factors()
+    rows_below = low.indices[low.indptr[k]:low.indptr[k + 1]]
+    rows_below = rows_below[rows_below > k]
+    assert rows_below.size > 0
+    other = lu.perm_r[rows_below[0]]             # a row the pivot of step k was chosen over
+    pivot_change = a.copy()
+    pivot_change[other, lu.perm_c[k]] = 1e6 * (1.0 + abs(a[other, lu.perm_c[k]]))
+    sequence += [pivot_change, a]
+    more = a.copy()
+    more[3, lu.perm_c[n - 5]] = 0.7                # an entry outside the structure
+    fewer = a.copy()
+    fewer[np.flatnonzero(a[:, lu.perm_c[n - 9]])[0], lu.perm_c[n - 9]] = 0.0   # one less
+    moved = a.copy()                               # as many entries, one in another row
+    col = lu.perm_c[n - 12]
+    rows = np.flatnonzero(a[:, col])
+    free = np.setdiff1d(np.arange(n), rows)
+    moved[free[0], col], moved[rows[-1], col] = a[rows[-1], col], 0.0
+    singular = a.copy()
+    singular[:, lu.perm_c[40]] = 0.0
+    nan = a.copy()
+    nan[5, lu.perm_c[60]] = np.nan
+    sequence += [more, a, fewer, fewer * 2.0, moved, singular, a, nan, a, a]
+    restarts = []
+    for m in sequence:
+        info = lu.factor(m)
+        assert info == ref.factor(m)
+        restarts.append(lu.restart)
+        assert_same_factorisation(lu, ref, b)
+        if info == 0:
+            assert backward_error(m, lu.solve(b), b) <= 10 * EPS
+    # every path was taken: reused whole (-1), searched from a middle step, from scratch (0)
+    assert restarts[1] == -1 and restarts[-1] == -1 and lu.nreused >= 3
+    assert restarts[2] == k                        # the pivot changed at step k
+    assert restarts[4] == n - 5 and restarts[6] == n - 9 and restarts[8] == n - 12
+    assert ref.nreused == 0 and ref.restart == 0
+    # the pivot change is LAPACK's
+    _, piv, _ = sla.lapack.dgetrf(pivot_change[:, lu.perm_c])
+    assert ref.factor(pivot_change) == 0 and np.array_equal(ref.ipiv, piv)
+
+
+def test_reuse_on_rig_matrices_along_a_run(rig):
+    # iteration matrices of the rig at the states and step sizes of a run: the C context that
+    # reuses its structure and one that does not agree bit for bit
+    from pvgraph.simulate import simulate
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = simulate(rig, 0.05, rtol=1e-6)
+    lu = clu.SparseLU(rig.n, rig.jac_sparsity)
+    ref = clu.SparseLU(rig.n, perm_c=lu.perm_c, reuse=False)
+    b = rig.nominal.copy()
+    idx = np.linspace(0, len(res.t) - 1, 25).astype(int)
+    for i, cj in zip(idx, np.geomspace(1e6, 1e2, idx.size)):
+        j = rig.jacobian_dense(float(res.t[i]), res.y[i], res.yp[i], cj)
+        assert lu.factor(j) == ref.factor(j) == 0
+        assert_same_factorisation(lu, ref, b)
+    assert lu.nreused >= 10
