@@ -32,7 +32,7 @@ SQRT_UROUND = math.sqrt(np.finfo(float).eps)
 ZERO_COLUMN_GROWTH = 1e6    # a difference column lost to rounding is retried this much larger
 
 CLU_ORDER_MIN_N = 32        # the C LU orders columns to reduce fill from this size on
-_COLUMN_ORDERS = {}         # the C LU's column order by sparsity pattern (64 most recent)
+_COLUMN_ORDERS = {}         # the C LU's column orders by pattern and by pattern object
 _GETRF, _GETRS = get_lapack_funcs(("getrf", "getrs"), (np.empty(1),))
 
 
@@ -318,14 +318,19 @@ class LUSolver:
         if pattern is None or pattern.shape != (n, n) or n < CLU_ORDER_MIN_N:
             self._clu = SparseLU(n)
             return self._clu
-        pattern = sp.csc_matrix(pattern)
-        key = (n, pattern.indptr.tobytes(), pattern.indices.tobytes())
-        perm = _COLUMN_ORDERS.get(key)
-        if perm is None:
-            perm = column_order(pattern)
-            if len(_COLUMN_ORDERS) >= 64:
+        known = _COLUMN_ORDERS.get(id(pattern))
+        if known is not None and known[0] is pattern:   # the same pattern object again
+            perm = known[1]
+        else:
+            csc = sp.csc_matrix(pattern)
+            key = (n, csc.indptr.tobytes(), csc.indices.tobytes())
+            perm = _COLUMN_ORDERS.get(key)
+            if perm is None:
+                perm = column_order(csc)
+            while len(_COLUMN_ORDERS) >= 128:
                 _COLUMN_ORDERS.pop(next(iter(_COLUMN_ORDERS)))
             _COLUMN_ORDERS[key] = perm
+            _COLUMN_ORDERS[id(pattern)] = (pattern, perm)
         self._clu = SparseLU(n, perm_c=perm)
         return self._clu
 

@@ -274,7 +274,9 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     if lu_kind == "c":
         jacobian.dense_only = True      # the C LU takes dense matrices (n <= CLU_MAX_N)
         jacobian.sparse = False
-    lu_pattern = getattr(jacobian, "pattern", None)
+    # the given pattern object itself: the C LU remembers its column order by object
+    lu_pattern = jac_sparsity if jac_sparsity is not None else getattr(jacobian, "pattern",
+                                                                       None)
     if lu_kind == "c" and lu_pattern is None:
         system = _c_system_of(residual)
         lu_pattern = system.jac_sparsity if system is not None else None
