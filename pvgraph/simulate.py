@@ -223,14 +223,18 @@ def _check_pressures(sol: Solution) -> None:
     """Warn when a pressure leaves the physical range: the circuit, not the solver, is wrong."""
     system = sol.system
     worst = []
-    for j, (name, unit) in enumerate(zip(system.names, system.units)):
-        if unit != "Pa" or sol.y.shape[0] == 0:
-            continue
+    cols = [j for j, unit in enumerate(system.units) if unit == "Pa"]
+    if not cols or sol.y.shape[0] == 0:
+        return
+    # one pass over the pressure columns; the columns out of range looked at one by one
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.abs(sol.y[:, cols]) <= PRESSURE_LIMIT).all(axis=0)
+    for j in np.asarray(cols)[bad]:
         col = np.abs(sol.y[:, j])
         k = int(np.argmax(col))
         if not np.isfinite(col[k]) or col[k] > PRESSURE_LIMIT:
             first = int(np.argmax(~np.isfinite(col) | (col > PRESSURE_LIMIT)))
-            worst.append((float(col[k]), name, float(sol.t[first])))
+            worst.append((float(col[k]), system.names[j], float(sol.t[first])))
     if worst:
         worst.sort(reverse=True)
         same = {}

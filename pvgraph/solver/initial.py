@@ -44,7 +44,8 @@ ARMIJO = 1e-4
 
 
 def start_values(fun, t0, y0, yp0, mode, algebraic, alg_given, jacobian, rtol, atol,
-                 t_span_length, h0, var_names=None, lu_kind="lapack", lu_pattern=None):
+                 t_span_length, h0, var_names=None, lu_kind="lapack", lu_pattern=None,
+                 lu=None):
     """Consistent (y, y') at t0 for the integrators, according to ``calc_initial``.
 
     ``mode`` None checks the given values and keeps them. ``"algebraic"`` without an
@@ -52,9 +53,11 @@ def start_values(fun, t0, y0, yp0, mode, algebraic, alg_given, jacobian, rtol, a
     within a tenth of the tolerance is kept as it is (a singular, non-diagonal dF/dy' such
     as the Transistor Amplifier's has no variable-wise split to solve for); otherwise the
     variables whose y' has an identically zero column in dF/dy' are taken as algebraic.
-    ``lu_kind`` and ``lu_pattern`` make the ``LUSolver`` of the Newton matrices.
+    ``lu_kind`` and ``lu_pattern`` make the ``LUSolver`` of the Newton matrices, unless one
+    is given as ``lu`` (a caller starting many times reuses it).
     """
-    lu = LUSolver(lu_kind, pattern=lu_pattern)
+    if lu is None:
+        lu = LUSolver(lu_kind, pattern=lu_pattern)
     if mode is None:
         check_consistency(fun, t0, y0, yp0, jacobian, lu, h0, rtol, atol, var_names)
         return y0.copy(), yp0.copy()
@@ -68,7 +71,7 @@ def start_values(fun, t0, y0, yp0, mode, algebraic, alg_given, jacobian, rtol, a
         mask[derivative_free_columns(jacobian, t0, y0, yp0, r)] = True
     return consistent_initial_conditions(fun, t0, y0, yp0, mode, mask, jacobian, rtol, atol,
                                          t_span_length, var_names, lu_kind=lu_kind,
-                                         lu_pattern=lu_pattern)
+                                         lu_pattern=lu_pattern, lu=lu)
 
 
 def derivative_free_columns(jacobian, t, y, yp, r):
@@ -94,7 +97,7 @@ def _equation_names(r, var_names, count=3):
 
 def consistent_initial_conditions(fun, t0, y0, yp0, mode, algebraic, jacobian, rtol, atol,
                                   t_span_length, var_names=None, lu_kind="lapack",
-                                  lu_pattern=None):
+                                  lu_pattern=None, lu=None):
     """Solve for consistent (y, y') at t0.
 
     Parameters
@@ -122,6 +125,8 @@ def consistent_initial_conditions(fun, t0, y0, yp0, mode, algebraic, jacobian, r
         The ``LUSolver`` kind of the Newton matrices.
     lu_pattern : sparse matrix, optional
         Their sparsity pattern (the C LU's column order is chosen for it).
+    lu : linalg.LUSolver, optional
+        The LU solver to use instead of a new one of ``lu_kind``.
 
     Returns
     -------
@@ -139,7 +144,8 @@ def consistent_initial_conditions(fun, t0, y0, yp0, mode, algebraic, jacobian, r
         raise ValueError(f"calc_initial must be 'algebraic', 'all' or None, got {mode!r}")
     cyp = 1.0 - cy
     hic = IC_TIME_FRACTION * abs(t_span_length)
-    lu = LUSolver(lu_kind, pattern=lu_pattern)
+    if lu is None:
+        lu = LUSolver(lu_kind, pattern=lu_pattern)
     r = np.asarray(fun(t0, y, yp), dtype=float)
     for _ in range(IC_MAX_ITERS):
         if not np.all(np.isfinite(r)):

@@ -281,6 +281,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         system = _c_system_of(residual)
         lu_pattern = system.jac_sparsity if system is not None else None
     lu = LUSolver(lu_kind, pattern=lu_pattern)
+    ic_lu = LUSolver(lu_kind, pattern=lu_pattern)       # the (re)starts' Newton matrices
     # IDA's suppressalg (see the suppress_alg parameter)
     error_mask = ((~alg_mask).astype(float)
                   if suppress_alg and alg_given and alg_mask.any() else None)
@@ -291,7 +292,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         h0 = min(initial_step(yp, ewt if error_mask is None else ewt * error_mask,
                               span, max_step, first_step), span)
         return start_values(counted, t, y, yp, mode, alg_mask, alg_given, jacobian, rtol,
-                            atol, span, h0, var_names, lu_kind=lu_kind, lu_pattern=lu_pattern)
+                            atol, span, h0, var_names, lu=ic_lu)
 
     y, yp = initialise(t0, y0, yp0, calc_initial)
 
