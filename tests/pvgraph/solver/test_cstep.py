@@ -127,17 +127,42 @@ def test_rig_test_2_with_events_and_mode_changes(rig, c_steps):
     assert_identical(a, b)
 
 
-def test_machine_cycle_window(c_steps):
-    # the machine (184 unknowns: sparse iteration matrix, SuperLU solves called back) over
-    # the first lift: the voltage ramps at 0.2 s and 0.3 s
+@pytest.mark.parametrize("linear_solver", ["lapack", "c"])
+def test_machine_cycle_window(c_steps, linear_solver, monkeypatch):
+    # the machine (184 unknowns) over the first lift: the voltage ramps at 0.2 s and 0.3 s;
+    # "lapack": a sparse iteration matrix, SuperLU's solves called back from C; "c": the
+    # compiled Jacobian made dense and factorised by the C sparse LU inside the C step
     from pvgraph.circuits.machine import RTOL, build_machine
+    from pvgraph.solver import clu
+    calls = {"n": 0}
+    factor = clu.SparseLU.factor
+
+    def counted(self, m):              # factorisations by the Python code
+        calls["n"] += 1
+        return factor(self, m)
+
+    monkeypatch.setattr(clu.SparseLU, "factor", counted)
     s = build_machine().compile(backend="c")
     assert s.n > s.DENSE_MAX
     t_eval = np.linspace(0.0, 0.4, 81)
-    a, b = both(lambda cs: simulate(s, 0.4, rtol=RTOL, t_eval=t_eval, c_step=cs))
+    runs = []
+    for cs in (False, None):
+        calls["n"] = 0
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            runs.append(simulate(s, 0.4, rtol=RTOL, t_eval=t_eval, c_step=cs,
+                                 linear_solver=linear_solver))
+        runs[-1].python_factors = calls["n"]
+    a, b = runs
     assert_identical(a, b)
     assert c_steps["n"] == b.stats["nsteps"] > 100
     assert b.stats["ncfn"] + b.stats["netf"] > 0
+    if linear_solver == "c":
+        # the Python step factorises every matrix itself (and the starts'), the C step
+        # only the starts' matrices
+        assert a.python_factors > b.stats["nlu"] > 20 > b.python_factors
+    else:
+        assert a.python_factors == b.python_factors == 0
 
 
 @pytest.mark.parametrize("case", ["rig, dense differences", "machine, detected pattern"])
