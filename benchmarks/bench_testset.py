@@ -19,7 +19,8 @@ switched (steps and mescd, to decide the defaults).
 
 With ``--compiled`` a second table compares, on the same rows, pvgraph on the residual traced
 from ``residual_lib`` and compiled to C (:func:`pvgraph.dae.compile_dae` with ``backend="c"``,
-exact symbolic Jacobian, the solver's step in C: the counterpart of CasADi's compiled SX) with
+exact symbolic Jacobian, ``solve_dae``'s defaults for it: the step and the integration loop in
+C and the C sparse LU; the counterpart of CasADi's compiled SX) with
 IDAS, next to pvgraph on the Python residual. Times exclude the one-off compilations on both
 sides (CasADi's integrator construction, pvgraph's tracing and C build).
 
