@@ -19,6 +19,7 @@ References
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 import scipy.sparse as sp
@@ -33,6 +34,7 @@ ZERO_COLUMN_GROWTH = 1e6    # a difference column lost to rounding is retried th
 
 CLU_ORDER_MIN_N = 32        # the C LU orders columns to reduce fill from this size on
 _COLUMN_ORDERS = {}         # the C LU's column orders by pattern and by pattern object
+_COLUMN_ORDERS_LOCK = threading.Lock()
 _GETRF, _GETRS = get_lapack_funcs(("getrf", "getrs"), (np.empty(1),))
 
 
@@ -327,10 +329,11 @@ class LUSolver:
             perm = _COLUMN_ORDERS.get(key)
             if perm is None:
                 perm = column_order(csc)
-            while len(_COLUMN_ORDERS) >= 128:
-                _COLUMN_ORDERS.pop(next(iter(_COLUMN_ORDERS)))
-            _COLUMN_ORDERS[key] = perm
-            _COLUMN_ORDERS[id(pattern)] = (pattern, perm)
+            with _COLUMN_ORDERS_LOCK:        # runs in threads share the cache
+                while len(_COLUMN_ORDERS) >= 128:
+                    _COLUMN_ORDERS.pop(next(iter(_COLUMN_ORDERS)))
+                _COLUMN_ORDERS[key] = perm
+                _COLUMN_ORDERS[id(pattern)] = (pattern, perm)
         self._clu = SparseLU(n, perm_c=perm)
         return self._clu
 

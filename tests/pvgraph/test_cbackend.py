@@ -176,6 +176,28 @@ def test_threads_share_a_system():
     assert np.array_equal(cc.residual(0.0, y, cc.yp0), want)
 
 
+def test_threads_simulate_one_system_with_the_c_step_and_lu():
+    # runs of one C-route system in threads (a threaded sweep): each run has its own step
+    # state and LU contexts, so each gives the numbers of the same run alone
+    cc = pump_volume_orifice().compile(backend="c")
+    areas = [mm2(a) for a in (1.5, 2.0, 2.5, 3.0)]
+    alone = [simulate(cc.with_params({"o.A": A}), 0.5) for A in areas]
+    got = {}
+
+    def work(k):
+        for _ in range(3):
+            got[k] = simulate(cc.with_params({"o.A": areas[k]}), 0.5)
+
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(len(areas))]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    for k, ref in enumerate(alone):
+        assert got[k].stats == ref.stats and np.array_equal(got[k].y, ref.y)
+        assert ref.stats["nlu"] > 0
+
+
 def test_the_cache_serves_a_second_compilation(monkeypatch):
     c = pump_volume_orifice(A=mm2(1.234))
     first = c.compile(backend="c")
