@@ -76,6 +76,7 @@ class _Context(ctypes.Structure):
 _lock = threading.Lock()
 _lib = None
 _lib_error = None
+_fn_addresses = None
 
 
 def _load():
@@ -109,6 +110,15 @@ def library():
             except Exception as exc:     # no compiler, a failed build, a missing symbol
                 _lib_error = f"{type(exc).__name__}: {exc}"
     return _lib
+
+
+def _addresses(lib):
+    """(pv_lu_factor, pv_lu_solve) as integers, for C callers (worked out once)."""
+    global _fn_addresses
+    if _fn_addresses is None:
+        _fn_addresses = (ctypes.cast(lib.pv_lu_factor, _vp).value,
+                         ctypes.cast(lib.pv_lu_solve, _vp).value)
+    return _fn_addresses
 
 
 def available():
@@ -192,10 +202,12 @@ class SparseLU:
             perm_c = (column_order(pattern, ordering) if pattern is not None
                       else np.arange(n, dtype=np.int64))
         perm_c = np.ascontiguousarray(perm_c, dtype=np.int64)
-        if perm_c.shape != (n,) or not np.array_equal(np.sort(perm_c), np.arange(n)):
+        if perm_c.shape != (n,):
             raise ValueError(f"perm_c must be a permutation of 0..{n - 1}")
-        ctx = lib.pv_lu_new(n, perm_c.ctypes.data)
+        ctx = lib.pv_lu_new(n, perm_c.ctypes.data)      # checks the permutation
         if not ctx:
+            if not np.array_equal(np.sort(perm_c), np.arange(n)):
+                raise ValueError(f"perm_c must be a permutation of 0..{n - 1}")
             raise MemoryError(f"pv_lu_new({n}) could not allocate its context")
         self.n = n
         self.perm_c = perm_c
@@ -205,8 +217,7 @@ class SparseLU:
         self._c.reuse = 1 if reuse else 0
         self._factor = lib.pv_lu_factor
         self._solve = lib.pv_lu_solve
-        self.factor_address = ctypes.cast(lib.pv_lu_factor, _vp).value
-        self.solve_address = ctypes.cast(lib.pv_lu_solve, _vp).value
+        self.factor_address, self.solve_address = _addresses(lib)
         self.info = None
         # buffers whose addresses are taken once (numpy's .ctypes costs a microsecond a call)
         self._a = np.empty((n, n), order="F")

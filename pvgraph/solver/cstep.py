@@ -260,6 +260,15 @@ def c_system_of(fun):
     return owner
 
 
+def _address(module, name):
+    """The address of a compiled module's function (remembered on the module)."""
+    known = module.__dict__.setdefault("_pv_addresses", {})
+    addr = known.get(name)
+    if addr is None:
+        addr = known[name] = ctypes.cast(getattr(module, name), _vp).value
+    return addr
+
+
 def _field(name):
     def get(self):
         return getattr(self._s, name)
@@ -330,21 +339,30 @@ class CStepIntegrator(IDAIntegrator):
         self._system = system
         super().__init__(fun, n, rtol, atol, error_mask, jacobian, lu, max_order, max_step,
                          var_names, no_growth_after_failure, None, newton_iterate_retry)
-        self._ewt = np.ones(n)
-        self._ewt_err = np.ones(n) if error_mask is not None else self._ewt
-        self._mask = (np.ascontiguousarray(error_mask, dtype=float) if error_mask is not None
-                      else np.ones(n))
-        self._atol = np.ascontiguousarray(atol, dtype=float)
-        self._harmonic = np.array(HARMONIC + [0.0] * (8 - len(HARMONIC)), dtype=float)
-        self._yy = np.zeros(n)
-        self._yp = np.zeros(n)
-        self._eew = np.zeros(n)
-        self._r = np.zeros(n)
-        self._delta = np.zeros(n)
-        self._dw = np.zeros(n)
-        self._work = np.zeros(2 * n)
-        self._failvec = np.zeros(n)
-        self._sq = np.zeros(n)
+        # the arrays the kernel shares, views of one buffer (their addresses computed once)
+        sizes = (("ewt", n), ("ewt_err", n if error_mask is not None else 0), ("mask", n),
+                 ("atol", n), ("harmonic", 8), ("yy", n), ("yp", n), ("eew", n), ("r", n),
+                 ("delta", n), ("dw", n), ("work", 2 * n), ("failvec", n), ("sq", n),
+                 ("iy", n), ("iyp", n))
+        self._buf = buf = np.zeros(sum(size for _, size in sizes))
+        base = buf.ctypes.data
+        at = 0
+        for name, size in sizes:
+            if size:
+                setattr(self, "_" + name, buf[at:at + size])
+                if name not in ("iy", "iyp"):           # the interpolant's outputs
+                    setattr(s, name, base + 8 * at)
+            at += size
+        if error_mask is None:
+            self._ewt_err = self._ewt
+            s.ewt_err = s.ewt
+            self._mask[:] = 1.0
+        else:
+            self._ewt_err[:] = 1.0
+            self._mask[:] = error_mask
+        self._ewt[:] = 1.0
+        self._atol[:] = atol
+        self._harmonic[:len(HARMONIC)] = HARMONIC
         self._lu_keep = None
         self._piv1 = None
         self._exc = None
@@ -355,13 +373,7 @@ class CStepIntegrator(IDAIntegrator):
         s.rtol, s.hmax_inv, s.inv_n = float(rtol), float(self.hmax_inv), float(self.inv_n)
         for name in ("phi", "ee"):
             setattr(s, name, getattr(self, name).ctypes.data)
-        for name, arr in (("ewt", self._ewt), ("ewt_err", self._ewt_err), ("mask", self._mask),
-                          ("atol", self._atol), ("harmonic", self._harmonic), ("yy", self._yy),
-                          ("yp", self._yp), ("eew", self._eew), ("r", self._r),
-                          ("delta", self._delta), ("dw", self._dw), ("work", self._work),
-                          ("failvec", self._failvec), ("sq", self._sq)):
-            setattr(s, name, arr.ctypes.data)
-        s.res = ctypes.cast(system._cmod.residual, _vp).value
+        s.res = _address(system._cmod, "residual")
         s.ddot, s.dgemv, s.daxpy, s.dgetrs = kern.ddot, kern.dgemv, kern.daxpy, kern.dgetrs
         self._setup_cb = _SETUP(self._setup_from_c)
         s.setup = ctypes.cast(self._setup_cb, _vp).value
@@ -376,7 +388,7 @@ class CStepIntegrator(IDAIntegrator):
             self._c_lu = np.zeros((n, n), order="F")
             self._c_piv = np.zeros(n, dtype=np.int32)
             s.nnz = nnz
-            s.jac = ctypes.cast(system._cmod.jacobian, _vp).value
+            s.jac = _address(system._cmod, "jacobian")
             s.dgetrf = kern.dgetrf
             for name in ("rows", "cols", "jout", "c_lu", "c_piv"):
                 setattr(s, name, getattr(self, "_" + name).ctypes.data)
@@ -387,8 +399,7 @@ class CStepIntegrator(IDAIntegrator):
         self._cst = None
         self._sref = ctypes.byref(s)
         self._tracker = None
-        self._iy, self._iyp = np.zeros(n), np.zeros(n)
-        self._iaddr = (self._iy.ctypes.data, self._iyp.ctypes.data)
+        self._iaddr = (base + 8 * (at - 2 * n), base + 8 * (at - n))
 
     def _set_weights(self, y):
         """As IDAIntegrator's, into the arrays the kernel shares."""
@@ -479,7 +490,7 @@ class CStepIntegrator(IDAIntegrator):
         self._ev_buf = np.zeros(system._cmod.n_ev)
         self._g_pair = (np.zeros(tracker.m), np.zeros(tracker.m))
         self._g_addr = tuple(g.ctypes.data for g in self._g_pair)
-        s.ev = ctypes.cast(system._cmod.events, _vp).value
+        s.ev = _address(system._cmod, "events")
         s.ev_idx, s.ev_buf = self._ev_idx.ctypes.data, self._ev_buf.ctypes.data
         s.ev_m = tracker.m
         s.g_old = s.g_new = None
