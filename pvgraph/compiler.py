@@ -172,7 +172,10 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
         got = _connection_key(eq.expr)
         if got is not None:
             prov.add(eq.expr, *got)
-    found.extend(E.leaves(eq.expr, ("sym", "der")) for eq in equations[len(found):])
+            # the leaves of ``a - b`` or ``q1 + ... + qn``: its distinct names, in order
+            found.append([("sym", nm) for nm in got[1]])
+        else:
+            found.append(E.leaves(eq.expr, ("sym", "der")))
     _check_symbols(equations, found, infos, set(mode_names))
 
     for name, info in registry.items():
@@ -413,6 +416,10 @@ def _signal_set(labels, specs, exposed):
 
 def _check_symbols(equations, found, infos, modes):
     """Every symbol an equation reads is a variable or a mode (``found``: their leaves)."""
+    read = {nm for leaves in found for _, nm in leaves}
+    if read - infos.keys() <= modes and (not modes or not any(
+            op == "der" and name in modes for leaves in found for op, name in leaves)):
+        return    # all is well (else the loop below names the first equation at fault)
     for eq, leaves in zip(equations, found):
         for op, name in leaves:
             if name not in infos and name not in modes:
@@ -797,14 +804,27 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
     def num(x):
         return x if isinstance(x, float) else E.evaluate(x, values)
 
+    # name -> the state of resolve's walk along the chain of substitutions where it ended
+    # last: a chain only grows at its end (an unknown is eliminated once), so the walk goes on
+    # from there, with the very same arithmetic
+    walked: dict[str, tuple] = {}
+
     def resolve(name):
-        coef, target, off = 1.0, name, 0.0
+        got = walked.get(name)
+        if got is None:
+            coef, target, off = 1.0, name, 0.0
+        else:
+            coef, target, off = got
+            if target not in subs:
+                return got
         while target in subs:
             c2, t2, o2 = subs[target]
             coef, target, off = _kmul(coef, c2), t2, _kadd(_kmul(coef, o2), off)
             if t2 is None:
-                return 0.0, None, off
-        return coef, target, off
+                walked[name] = got = (0.0, None, off)
+                return got
+        walked[name] = got = (coef, target, off)
+        return got
 
     def rank(name):
         info = infos[name]
@@ -834,8 +854,26 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
             out.append(new)
         return expr, out[0], out[1], exact
 
+    # per provenance key: the (kind, place of the name) of its rows' variable and derivative
+    # leaves (one graph up to the names), or None where a leaf is not among the key's names
+    read_forms: dict[int, object] = {}
+
     def read(expr):
+        p = prov.get(expr) if prov is not None else None
+        if p is not None:
+            key, names = p
+            got = read_forms.get(key, False)
+            if got is None:
+                p = None
+            elif got is not False:
+                syms_c, ders_c = got
+                return {names[c] for c in syms_c}, {names[c] for c in ders_c}
         lv = E.leaves(expr, ("sym", "der"))
+        if p is not None:
+            place = {nm: c for c, nm in enumerate(p[1])}
+            read_forms[p[0]] = ([place[nm] for op, nm in lv if op == "sym"],
+                                [place[nm] for op, nm in lv if op == "der"]) \
+                if all(nm in place for _, nm in lv) else None
         return {nm for op, nm in lv if op == "sym"}, {nm for op, nm in lv if op == "der"}
 
     eliminated = subs.keys()
@@ -845,16 +883,18 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
     forms: dict[int, object] = {}
 
     def affine(expr):
+        """:func:`_affine` of ``expr`` and whether its coefficients are known to be floats."""
         p = prov.get(expr) if prov is not None else None
         if p is None:
-            return _affine(expr)
+            form = _affine(expr)
+            return None if form is None else form + (False,)
         key, names = p
         known = forms.get(key, False)
         if known is None:
             return None
         if known is not False and known is not _PARAMETRIC:
             terms, k = known
-            return {names[c]: w for c, w in terms}, k
+            return {names[c]: w for c, w in terms}, k, True
         form = _affine(expr)
         if known is False:
             if form is None:
@@ -865,11 +905,11 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
                 forms[key] = ([(place[v], w) for v, w in form[0].items()], form[1])
             else:
                 forms[key] = _PARAMETRIC
-        return form
+        return None if form is None else form + (False,)
 
     def plain(syms, ders):
         """False where :func:`_affine` cannot hold: a derivative or a mode is read."""
-        return not ders and not any("#" in nm for nm in syms)
+        return not ders and "#" not in "".join(syms)
 
     # Passes over the equations in order until nothing is eliminated. An equation none of whose
     # variables was eliminated since it was last looked at gives the same answer again, so it is
@@ -903,8 +943,8 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
             if form is None:
                 keep.append(item)
                 continue
-            coeffs, k = form
-            if not all(isinstance(w, float) for w in coeffs.values()):
+            coeffs, k, floats = form    # floats: every coefficient is known to be a float
+            if not floats and not all(isinstance(w, float) for w in coeffs.values()):
                 if other is None:
                     other = _scrambled(values)
                 coeffs = {v: w for v, w in coeffs.items() if not _vanishes(w, values, other)}
