@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import itertools
 import zlib
 from dataclasses import dataclass
 
@@ -152,8 +153,8 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
                 tpl, at = templates.last
                 rows = list(residuals) + [ev.condition for ev in v.events]
                 nodes = tpl.last_nodes or ()
-                for k, (r, names) in enumerate(zip(rows, tpl.row_names(at))):
-                    prov.add(r, (tpl, k), names, nodes[k] if k < len(nodes) else None)
+                prov.add_rows(rows, prov.template_keys(tpl, len(rows)), tpl.row_names(at),
+                              nodes)
             for k, r in enumerate(residuals):
                 equations.append(_Equation(r, path, f"{path} equation {k + 1} "
                                                     f"({type(comp).__name__})"))
@@ -600,6 +601,7 @@ class _Provenance:
         self.keys: dict = {}
         self._in_token: dict[int, tuple] = {}
         self._builders: dict[int, object] = {}   # key number -> builder, candidate or False
+        self._of_template: dict = {}   # template -> the key numbers of its rows
 
     def number(self, key) -> int:
         k = self.keys.get(key)
@@ -609,6 +611,21 @@ class _Provenance:
 
     def add(self, row, key, names, nodes=None):
         self.rows[id(row)] = (row, self.number(key), names, nodes)
+
+    def template_keys(self, tpl, n) -> list:
+        """The key numbers of the rows ``(tpl, 0)``, ..., ``(tpl, n - 1)``."""
+        got = self._of_template.get(tpl)
+        if got is None or len(got) != n:
+            got = self._of_template[tpl] = [self.number((tpl, k)) for k in range(n)]
+        return got
+
+    def add_rows(self, rows, numbers, names, nodes):
+        """:meth:`add` of each row with its key number, names and nodes (the first
+        ``len(nodes)`` rows have theirs)."""
+        got = self.rows
+        n = len(nodes)
+        for k, (row, key, nm) in enumerate(zip(rows, numbers, names)):
+            got[id(row)] = (row, key, nm, nodes[k] if k < n else None)
 
     def forget_nodes(self):
         """Drop the rows' node lists (needed while substituting only)."""
@@ -1062,7 +1079,10 @@ def check_structure(names, eq_labels, inc_y, inc_yp, differential):
     n_eq, n_var = len(eq_labels), len(names)
     if n_eq == 0 and n_var == 0:
         return  # everything was fixed by alias elimination
-    pencil = _incidence(n_eq, n_var, [sorted(set(a) | set(b)) for a, b in zip(inc_y, inc_yp)])
+    rows_y, cols_y = _flat(inc_y)
+    rows_yp, cols_yp = _flat(inc_yp)
+    pencil = _incidence(n_eq, n_var, np.concatenate([rows_y, rows_yp]),
+                        np.concatenate([cols_y, cols_yp]))
     match_eq = maximum_bipartite_matching(pencil, perm_type="column")
     unmatched_eq = [i for i in range(n_eq) if match_eq[i] < 0]
     matched_vars = {int(j) for j in match_eq if j >= 0}
@@ -1086,9 +1106,11 @@ def check_structure(names, eq_labels, inc_y, inc_yp, differential):
         raise StructureError("\n".join(parts))
 
     # index one: solvable for (y' of differential variables, y of algebraic variables)
-    cols = [sorted({j for j in b if differential[j]} | {j for j in a if not differential[j]})
-            for a, b in zip(inc_y, inc_yp)]
-    solve_for = _incidence(n_eq, n_var, cols)
+    differential = np.asarray(differential, dtype=bool)
+    alg = ~differential[cols_y]
+    dif = differential[cols_yp]
+    solve_for = _incidence(n_eq, n_var, np.concatenate([rows_y[alg], rows_yp[dif]]),
+                           np.concatenate([cols_y[alg], cols_yp[dif]]))
     match1 = maximum_bipartite_matching(solve_for, perm_type="column")
     bad_eq = [i for i in range(n_eq) if match1[i] < 0]
     if bad_eq:
@@ -1103,10 +1125,20 @@ def check_structure(names, eq_labels, inc_y, inc_yp, differential):
             "compliance (a VolumeNode, a spring) or remove the rigid constraint.")
 
 
-def _incidence(n_eq, n_var, cols):
-    rows = np.repeat(np.arange(n_eq), [len(c) for c in cols])
-    flat = np.fromiter((j for c in cols for j in c), dtype=np.int64, count=len(rows))
-    return csr_matrix((np.ones(len(rows)), (rows, flat)), shape=(n_eq, n_var))
+def _flat(lists):
+    """``(rows, cols)`` arrays of the entries of per-row lists of column numbers."""
+    lens = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
+    cols = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64,
+                       count=int(lens.sum()))
+    return np.repeat(np.arange(len(lists), dtype=np.int64), lens), cols
+
+
+def _incidence(n_eq, n_var, rows, cols):
+    """The 0/1 incidence matrix (CSR, each row's columns sorted, once each) of the entries
+    ``(rows[k], cols[k])`` (repeats allowed)."""
+    key = np.unique(rows * max(n_var, 1) + cols)
+    rows, cols = np.divmod(key, max(n_var, 1))
+    return csr_matrix((np.ones(len(key)), (rows, cols)), shape=(n_eq, n_var))
 
 
 def _alternating(inc, start, match_eq, *, from_equations):
