@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import copy
 import keyword
+import operator
 import types
 
 from pydantic import BaseModel
@@ -454,7 +455,7 @@ def _same(a, b) -> bool:
     return type(a) is type(b) and a == b
 
 
-_FIELD_NAMES: dict = {}
+_FIELD_NAMES: dict = {}   # model class -> (field names, their values getter, all-float key)
 
 
 def _shape_key(value):
@@ -464,12 +465,19 @@ def _shape_key(value):
         return float
     if isinstance(value, BaseModel):
         cls = type(value)
-        names = _FIELD_NAMES.get(cls)
-        if names is None:
-            names = _FIELD_NAMES[cls] = tuple(cls.model_fields)
+        got = _FIELD_NAMES.get(cls)
+        if got is None:
+            names = tuple(cls.model_fields)
+            # the values of all fields at once (a tuple), and the key where all are floats
+            get = operator.attrgetter(*names) if len(names) > 1 else \
+                (lambda v: tuple(getattr(v, nm) for nm in names))
+            got = _FIELD_NAMES[cls] = (names, get, (cls,) + (float,) * len(names))
+        _, get, all_float = got
+        items = get(value)
+        if all(type(item) is float for item in items):
+            return all_float
         out = [cls]
-        for name in names:
-            item = getattr(value, name)
+        for item in items:
             item = float if type(item) is float else _shape_key(item)
             if item is None:
                 return None

@@ -523,8 +523,10 @@ def _islands(circuit: Circuit) -> list[dict]:
         volumes.update((path, n) for n in vols)
     islands: dict[tuple, dict] = {}
     for node in parent:
-        island = islands.setdefault(find(node), {"components": set(), "volumes": set(),
-                                                 "ref": False})
+        top = find(node)
+        island = islands.get(top)
+        if island is None:
+            island = islands[top] = {"components": set(), "volumes": set(), "ref": False}
         island["components"].add(node[0])
         if node in volumes:
             island["volumes"].add(node)

@@ -140,11 +140,12 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     # rows built from a template: id -> (row, key, names); rows of one key are one graph with
     # their names exchanged (see _Provenance)
     prov = _Provenance()
+    var_specs: dict = {}   # component class -> its variables (see _declare_variables)
     # the math functions stay symbolic over the whole loop (each component's trace then only
     # counts itself in and out instead of patching and restoring them)
     with _symbolic_math():
         for path, comp in leaves:
-            _declare_variables(path, comp, infos, registry)
+            _declare_variables(path, comp, infos, registry, var_specs)
             trace.where = f"{type(comp).__name__}.equations of {path!r}"
             with trace:
                 residuals, v, leaves_read = templates.trace(comp, path, registry, trace)
@@ -244,35 +245,49 @@ def _rel_path(root: Circuit, owner) -> str:
 
 # 2. connection sets -------------------------------------------------------------------------
 
-def _declare_variables(path, comp, infos, registry):
+def _declare_variables(path, comp, infos, registry, specs=None):
+    """Enter the variables of ``comp`` (ports' across and through variables, then its own) in
+    ``infos`` with their start values. ``specs``: a dict kept over one compilation, holding
+    each class's list of variables (see :func:`_variable_specs`)."""
     starts = comp.start_values_traced(path, registry)
     explicit_user = comp._start
+    cls = type(comp)
     # keys of the parameter-derived start values (none where the class keeps the default)
-    from_params = comp.starts(comp.params) if type(comp).starts is not Component.starts else ()
-    for pname, port in type(comp).ports.items():
+    from_params = comp.starts(comp.params) if cls.starts is not Component.starts else ()
+    spec = None if specs is None else specs.get(cls)
+    if spec is None:
+        spec = _variable_specs(cls)
+        if specs is not None:
+            specs[cls] = spec
+    for suffix, unit, key, nominal, desc, how in spec:
+        name = path + suffix
+        if how == 1:      # a through variable: starts at zero, never given
+            infos[name] = VarInfo(name, unit, 0.0, nominal, desc, path, 0)
+            continue
+        start = float(starts.get(key, 0.0)) if how == 0 else float(starts[key])
+        prio = 2 if key in explicit_user else 1 if key in from_params else 0
+        infos[name] = VarInfo(name, unit, start, nominal, desc, path, prio)
+
+
+def _variable_specs(cls) -> list:
+    """``(".name" suffix, unit, start key, nominal, description, how)`` of each variable of a
+    component class, in the order declared; ``how``: 0 a port's across variable or a signal
+    (start value 0 unless given), 1 a through variable, 2 a variable of the class's own."""
+    out = []
+    for pname, port in cls.ports.items():
         d = port.domain
         if d is SIGNAL:
-            key = pname
-            infos[f"{path}.{pname}"] = VarInfo(
-                f"{path}.{pname}", port.across_unit, float(starts.get(key, 0.0)),
-                port.across_nominal, port.description or f"signal {pname}", path,
-                _priority(key, explicit_user, from_params))
+            out.append((f".{pname}", port.across_unit, pname, port.across_nominal,
+                        port.description or f"signal {pname}", 0))
             continue
         key = f"{pname}.{d.across}"
-        infos[f"{path}.{key}"] = VarInfo(
-            f"{path}.{key}", d.across_unit, float(starts.get(key, 0.0)), d.across_nominal,
-            f"{d.across} at port {pname}", path, _priority(key, explicit_user, from_params))
-        infos[f"{path}.{pname}.{d.through}"] = VarInfo(
-            f"{path}.{pname}.{d.through}", d.through_unit, 0.0, d.through_nominal,
-            f"{d.through} into port {pname}", path, 0)
-    for vname, var in type(comp).variables.items():
-        infos[f"{path}.{vname}"] = VarInfo(
-            f"{path}.{vname}", var.unit, float(starts[vname]), var.nominal, var.description, path,
-            _priority(vname, explicit_user, from_params))
-
-
-def _priority(key, user, params):
-    return 2 if key in user else 1 if key in params else 0
+        out.append((f".{key}", d.across_unit, key, d.across_nominal,
+                    f"{d.across} at port {pname}", 0))
+        out.append((f".{pname}.{d.through}", d.through_unit, None, d.through_nominal,
+                    f"{d.through} into port {pname}", 1))
+    for vname, var in cls.variables.items():
+        out.append((f".{vname}", var.unit, vname, var.nominal, var.description, 2))
+    return out
 
 
 def _connection_equations(root, leaves, infos) -> list[_Equation]:
