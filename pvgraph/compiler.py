@@ -380,23 +380,29 @@ def _connection_equations(root, leaves, infos) -> list[_Equation]:
 
 
 def _connection_key(e):
-    """``(key, names)`` of a connection equation (``a - b``, or ``q1 + q2 + ... + qn`` summed
-    from the left) for :class:`_Provenance`, or None for another form."""
+    """``(key, names, nodes)`` of a connection equation (``a - b``, or ``q1 + q2 + ... + qn``
+    summed from the left) for :class:`_Provenance` (``nodes``: the row's nodes in
+    :func:`~pvgraph.expr.postorder`), or None for another form."""
     if e.op == "sub" and e.args[0].op == "sym" and e.args[1].op == "sym":
         key, names = ("sub",), [e.args[0].value, e.args[1].value]
+        nodes = [e.args[0], e.args[1], e]
     else:
         names = []
+        nodes = []      # outermost first: each sum, then the term it adds
         while e.op == "add" and e.args[1].op == "sym":
             names.append(e.args[1].value)
+            nodes += (e, e.args[1])
             e = e.args[0]
         if e.op != "sym" or not names:
             return None
         names.append(e.value)
         names.reverse()
+        nodes.append(e)
+        nodes.reverse()
         key = ("sum", len(names))
     if len(set(names)) != len(names):
         return None
-    return ("connection",) + key, tuple(names)
+    return ("connection",) + key, tuple(names), nodes
 
 
 def _node_label(labels):
@@ -673,15 +679,21 @@ class _Provenance:
             return c
         for nm in names:
             if nm not in subs:
-                pattern.append(("keep", place(nm)))
+                c = cls.get(nm)     # place(nm), inline (the common case)
+                if c is None:
+                    c = cls[nm] = len(out)
+                    out.append(nm)
+                pattern.append(("keep", c))
                 continue
             coef, target, off = resolve(nm)
             # the parameters a parametric coefficient or offset brings in are names too
             brought = []
-            for x in (coef, off):
-                if x.__class__ is not float:
-                    tokens.append(x)
-                    brought.extend(place(q) for q in self._params(x))
+            if coef.__class__ is not float:
+                tokens.append(coef)
+                brought.extend(place(q) for q in self._params(coef))
+            if off.__class__ is not float:
+                tokens.append(off)
+                brought.extend(place(q) for q in self._params(off))
             how = (_token(coef), _token(off), tuple(brought))
             pattern.append(("fix",) + how if target is None else ("sub", place(target)) + how)
         names = tuple(out)
@@ -1003,7 +1015,9 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
                 changed = True
                 continue
             if len(coeffs) == 2:
-                order = sorted(coeffs.items(), key=lambda kv: rank(kv[0]))
+                order = list(coeffs.items())    # by rank; the first of equals first
+                if rank(order[1][0]) < rank(order[0][0]):
+                    order.reverse()
                 if not isinstance(order[0][1], float):
                     order.reverse()
                 (u, a), (w, b) = order
