@@ -438,9 +438,9 @@ def _signal_set(labels, specs, exposed):
 
 def _check_symbols(equations, found, infos, modes):
     """Every symbol an equation reads is a variable or a mode (``found``: their leaves)."""
-    read = {nm for leaves in found for _, nm in leaves}
-    if read - infos.keys() <= modes and (not modes or not any(
-            op == "der" and name in modes for leaves in found for op, name in leaves)):
+    pairs = set(itertools.chain.from_iterable(found))
+    if {nm for _, nm in pairs} - infos.keys() <= modes and \
+            not any(("der", m) in pairs for m in modes):
         return    # all is well (else the loop below names the first equation at fault)
     for eq, leaves in zip(equations, found):
         for op, name in leaves:
