@@ -22,6 +22,7 @@ import copy
 import dataclasses
 import difflib
 import math
+import operator
 import threading
 import warnings
 from dataclasses import dataclass
@@ -1437,9 +1438,10 @@ def _slot_arrays(leaves_per_row) -> dict:
     for slots, lookup, at, names in batches.values():
         at = np.asarray(at, dtype=np.int64)
         for kind in codegen.SLOT_LEAVES:
-            number = lookup[kind]
+            number = lookup[kind].__getitem__
             for s, c in enumerate(slots[kind]):
-                out[kind][s][at] = [number[nm[c]] for nm in names]
+                out[kind][s][at] = np.fromiter(map(number, map(operator.itemgetter(c), names)),
+                                               dtype=np.int64, count=len(names))
     return out
 
 
