@@ -27,6 +27,8 @@ that trace's action.
 from __future__ import annotations
 
 import copy
+import keyword
+import operator
 import types
 
 from pydantic import BaseModel
@@ -155,18 +157,10 @@ class Template:
             self._build = self._builder()
         names = [path + tail for tail in self._tails]
         self.last_names = (path, names)
-        params = comp.params
-        for k, field, unit, desc in self._reads:
-            full = names[k]
-            info = registry.get(full)
-            if info is None:
-                info = registry[full] = ParameterInfo(full, _value(params, field), unit, desc,
-                                                      path, field)
-            info.in_equations = True
         for k, how in self._structural:
             trace.structural.setdefault(names[k], f"{how} in {where}")
-        residuals, obs_exprs, conditions, self.last_nodes = self._build(names, trace.leaf,
-                                                                        registry)
+        residuals, obs_exprs, conditions, self.last_nodes = self._build(
+            names, trace, registry, comp.params, path)
         observed = {nm: Observed(e, unit, desc)
                     for (nm, _, unit, desc), e in zip(self.observed, obs_exprs)}
         events = []
@@ -192,13 +186,29 @@ class Template:
                 for cl in self._classes]
 
     def _builder(self):
-        """A generated function ``(names, leaf, registry) -> (residuals, observed expressions,
-        event conditions, each residual's nodes in post-order)`` building the template's
-        graphs for an instance: one statement per node, leaves named from the instance's
-        ``names`` (see :meth:`_prepare`; parameter leaves from ``leaf``)."""
+        """A generated function ``(names, trace, registry, params, path) -> (residuals,
+        observed expressions, event conditions, each residual's nodes in post-order)``
+        building the template's graphs for an instance: first the registry entries of the
+        parameters read (in the order first read, as :class:`ParameterInfo`, values from
+        ``params``), then one statement per node, leaves named from the instance's ``names``
+        (see :meth:`_prepare`; parameter leaves shared per name through ``trace``, as
+        :meth:`pvgraph.expr.ParameterTrace.leaf` makes them)."""
         num: dict[int, str] = {}
         kept = []
-        lines = ["def build(N, leaf, registry):"]
+        lines = ["def build(N, trace, registry, P, path):",
+                 "    LV = trace._leaves",
+                 "    VS = trace.values"]
+        for k, field, unit, desc in self._reads:
+            parts = field.split(".")
+            attr = "".join("." + part for part in parts) if all(
+                part.isidentifier() and not keyword.iskeyword(part) for part in parts) \
+                else None
+            value = f"P{attr}" if attr is not None else f"V(P, {field!r})"
+            lines += [f"    i = registry.get(N[{k}])",
+                      "    if i is None:",
+                      f"        i = registry[N[{k}]] = PI(N[{k}], {value}, {unit!r}, "
+                      f"{desc!r}, path, {field!r})",
+                      "    i.in_equations = True"]
 
         def named(nm):
             k, kept_name = self._slots[nm]
@@ -220,7 +230,10 @@ class Template:
                 lines.append(f"    {var} = X({op!r}, (), {named(node.value)})")
             elif op == "param":
                 full = named(node.value)
-                lines.append(f"    {var} = leaf({full}, registry[{full}].value)")
+                lines += [f"    {var} = LV.get({full})",
+                          f"    if {var} is None:",
+                          f"        {var} = LV[{full}] = X('param', (), {full})",
+                          f"        VS.setdefault({full}, registry[{full}].value)"]
             elif op == "const":
                 lines.append(f"    {var} = X('const', (), K[{len(kept)}].value)")
                 kept.append(node)
@@ -234,7 +247,7 @@ class Template:
                               for r in self.residuals) + ")"
         lines.append(f"    return ({tup(self.residuals)}, {tup([ob[1] for ob in self.observed])}, "
                      f"{tup([ev[1] for ev in self.events])}, {nodes})")
-        namespace = {"X": E.Expr, "K": kept}
+        namespace = {"X": E.Expr, "K": kept, "PI": ParameterInfo, "V": _value}
         exec(compile("\n".join(lines), f"<template of {self.cls.__name__}>", "exec"),
              namespace)  # noqa: S102 - generated from the template's graph
         return namespace["build"]
@@ -442,7 +455,7 @@ def _same(a, b) -> bool:
     return type(a) is type(b) and a == b
 
 
-_FIELD_NAMES: dict = {}
+_FIELD_NAMES: dict = {}   # model class -> (field names, their values getter, all-float key)
 
 
 def _shape_key(value):
@@ -452,12 +465,19 @@ def _shape_key(value):
         return float
     if isinstance(value, BaseModel):
         cls = type(value)
-        names = _FIELD_NAMES.get(cls)
-        if names is None:
-            names = _FIELD_NAMES[cls] = tuple(cls.model_fields)
+        got = _FIELD_NAMES.get(cls)
+        if got is None:
+            names = tuple(cls.model_fields)
+            # the values of all fields at once (a tuple), and the key where all are floats
+            get = operator.attrgetter(*names) if len(names) > 1 else \
+                (lambda v: tuple(getattr(v, nm) for nm in names))
+            got = _FIELD_NAMES[cls] = (names, get, (cls,) + (float,) * len(names))
+        _, get, all_float = got
+        items = get(value)
+        if all(type(item) is float for item in items):
+            return all_float
         out = [cls]
-        for name in names:
-            item = getattr(value, name)
+        for item in items:
             item = float if type(item) is float else _shape_key(item)
             if item is None:
                 return None

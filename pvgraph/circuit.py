@@ -523,8 +523,10 @@ def _islands(circuit: Circuit) -> list[dict]:
         volumes.update((path, n) for n in vols)
     islands: dict[tuple, dict] = {}
     for node in parent:
-        island = islands.setdefault(find(node), {"components": set(), "volumes": set(),
-                                                 "ref": False})
+        top = find(node)
+        island = islands.get(top)
+        if island is None:
+            island = islands[top] = {"components": set(), "volumes": set(), "ref": False}
         island["components"].add(node[0])
         if node in volumes:
             island["volumes"].add(node)
@@ -558,7 +560,10 @@ def _frozen(value):
         out = [cls]
         for name in names:
             item = getattr(value, name)
-            item = (float, repr(item)) if type(item) is float else _frozen(item)
+            # a float by its value; a zero by its repr (tells -0.0 from 0.0; a NaN, equal to
+            # nothing, only misses)
+            item = (float, item if item else repr(item)) if type(item) is float else \
+                _frozen(item)
             if item is None:
                 return None
             out.append((name, item))
@@ -567,7 +572,7 @@ def _frozen(value):
         items = tuple(_frozen(x) for x in value)
         return None if any(x is None for x in items) else (type(value), items)
     if isinstance(value, float):
-        return (float, repr(value))   # tells -0.0 from 0.0
+        return (float, value if value else repr(value))   # tells -0.0 from 0.0
     if value is None or isinstance(value, (bool, int, str)):
         return (type(value), value)
     return None
@@ -575,7 +580,6 @@ def _frozen(value):
 
 def _port_roles(comp, path, hyd):
     """``(flow paths, reference ports, volume ports)`` of one component, by port name."""
-    from . import expr as E
     try:
         residuals, _ = comp.trace(path)
     except Exception:           # the compiler reports a component that cannot trace
@@ -586,19 +590,41 @@ def _port_roles(comp, path, hyd):
     carriers = [v for v, var in getattr(comp, "variables", {}).items() if var.unit == "m^3/s"]
     held: dict[str, str] = {}
     for r in residuals:
-        leaves_r = {f"{op}:{name}" for op, name in E.leaves(r, ("sym", "der"))}
+        leaves_r = _symbols_read(r)
         used |= leaves_r
-        flows = [n for n in hyd if f"sym:{path}.{n}.q" in leaves_r]
+        flows = [n for n in hyd if ("sym", f"{path}.{n}.q") in leaves_r]
         if len(flows) > 1:
             paths.append(flows)
         for v in carriers:
-            if flows and (f"sym:{path}.{v}" in leaves_r or f"der:{path}.{v}" in leaves_r):
+            if flows and (("sym", f"{path}.{v}") in leaves_r or
+                          ("der", f"{path}.{v}") in leaves_r):
                 if v in held and held[v] != flows[0]:
                     paths.append([held[v], flows[0]])
                 held[v] = flows[0]
-    fixing = [n for n in hyd if f"sym:{path}.{n}.p" in used and f"sym:{path}.{n}.q" not in used]
-    vols = [n for n in hyd if f"der:{path}.{n}.p" in used]
+    fixing = [n for n in hyd if ("sym", f"{path}.{n}.p") in used and
+              ("sym", f"{path}.{n}.q") not in used]
+    vols = [n for n in hyd if ("der", f"{path}.{n}.p") in used]
     return paths, fixing, vols
+
+
+def _symbols_read(root) -> set:
+    """The ``(op, name)`` of the variable (``sym``) and derivative (``der``) leaves of an
+    expression graph (each node visited once)."""
+    found = set()
+    seen = {id(root)}
+    stack = [root]
+    pop, push, add = stack.pop, stack.append, seen.add
+    while stack:
+        node = pop()
+        args = node.args
+        if args:
+            for a in args:
+                if id(a) not in seen:
+                    add(id(a))
+                    push(a)
+        elif node.op == "sym" or node.op == "der":
+            found.add((node.op, node.value))
+    return found
 
 
 def _no_reference_message(circuit: Circuit, islands: list[dict]) -> str:

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import itertools
 import zlib
 from dataclasses import dataclass
 
@@ -139,11 +140,12 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     # rows built from a template: id -> (row, key, names); rows of one key are one graph with
     # their names exchanged (see _Provenance)
     prov = _Provenance()
+    var_specs: dict = {}   # component class -> its variables (see _declare_variables)
     # the math functions stay symbolic over the whole loop (each component's trace then only
     # counts itself in and out instead of patching and restoring them)
     with _symbolic_math():
         for path, comp in leaves:
-            _declare_variables(path, comp, infos, registry)
+            _declare_variables(path, comp, infos, registry, var_specs)
             trace.where = f"{type(comp).__name__}.equations of {path!r}"
             with trace:
                 residuals, v, leaves_read = templates.trace(comp, path, registry, trace)
@@ -152,8 +154,8 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
                 tpl, at = templates.last
                 rows = list(residuals) + [ev.condition for ev in v.events]
                 nodes = tpl.last_nodes or ()
-                for k, (r, names) in enumerate(zip(rows, tpl.row_names(at))):
-                    prov.add(r, (tpl, k), names, nodes[k] if k < len(nodes) else None)
+                prov.add_rows(rows, prov.template_keys(tpl, len(rows)), tpl.row_names(at),
+                              nodes)
             for k, r in enumerate(residuals):
                 equations.append(_Equation(r, path, f"{path} equation {k + 1} "
                                                     f"({type(comp).__name__})"))
@@ -172,7 +174,10 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
         got = _connection_key(eq.expr)
         if got is not None:
             prov.add(eq.expr, *got)
-    found.extend(E.leaves(eq.expr, ("sym", "der")) for eq in equations[len(found):])
+            # the leaves of ``a - b`` or ``q1 + ... + qn``: its distinct names, in order
+            found.append([("sym", nm) for nm in got[1]])
+        else:
+            found.append(E.leaves(eq.expr, ("sym", "der")))
     _check_symbols(equations, found, infos, set(mode_names))
 
     for name, info in registry.items():
@@ -240,35 +245,49 @@ def _rel_path(root: Circuit, owner) -> str:
 
 # 2. connection sets -------------------------------------------------------------------------
 
-def _declare_variables(path, comp, infos, registry):
+def _declare_variables(path, comp, infos, registry, specs=None):
+    """Enter the variables of ``comp`` (ports' across and through variables, then its own) in
+    ``infos`` with their start values. ``specs``: a dict kept over one compilation, holding
+    each class's list of variables (see :func:`_variable_specs`)."""
     starts = comp.start_values_traced(path, registry)
     explicit_user = comp._start
+    cls = type(comp)
     # keys of the parameter-derived start values (none where the class keeps the default)
-    from_params = comp.starts(comp.params) if type(comp).starts is not Component.starts else ()
-    for pname, port in type(comp).ports.items():
+    from_params = comp.starts(comp.params) if cls.starts is not Component.starts else ()
+    spec = None if specs is None else specs.get(cls)
+    if spec is None:
+        spec = _variable_specs(cls)
+        if specs is not None:
+            specs[cls] = spec
+    for suffix, unit, key, nominal, desc, how in spec:
+        name = path + suffix
+        if how == 1:      # a through variable: starts at zero, never given
+            infos[name] = VarInfo(name, unit, 0.0, nominal, desc, path, 0)
+            continue
+        start = float(starts.get(key, 0.0)) if how == 0 else float(starts[key])
+        prio = 2 if key in explicit_user else 1 if key in from_params else 0
+        infos[name] = VarInfo(name, unit, start, nominal, desc, path, prio)
+
+
+def _variable_specs(cls) -> list:
+    """``(".name" suffix, unit, start key, nominal, description, how)`` of each variable of a
+    component class, in the order declared; ``how``: 0 a port's across variable or a signal
+    (start value 0 unless given), 1 a through variable, 2 a variable of the class's own."""
+    out = []
+    for pname, port in cls.ports.items():
         d = port.domain
         if d is SIGNAL:
-            key = pname
-            infos[f"{path}.{pname}"] = VarInfo(
-                f"{path}.{pname}", port.across_unit, float(starts.get(key, 0.0)),
-                port.across_nominal, port.description or f"signal {pname}", path,
-                _priority(key, explicit_user, from_params))
+            out.append((f".{pname}", port.across_unit, pname, port.across_nominal,
+                        port.description or f"signal {pname}", 0))
             continue
         key = f"{pname}.{d.across}"
-        infos[f"{path}.{key}"] = VarInfo(
-            f"{path}.{key}", d.across_unit, float(starts.get(key, 0.0)), d.across_nominal,
-            f"{d.across} at port {pname}", path, _priority(key, explicit_user, from_params))
-        infos[f"{path}.{pname}.{d.through}"] = VarInfo(
-            f"{path}.{pname}.{d.through}", d.through_unit, 0.0, d.through_nominal,
-            f"{d.through} into port {pname}", path, 0)
-    for vname, var in type(comp).variables.items():
-        infos[f"{path}.{vname}"] = VarInfo(
-            f"{path}.{vname}", var.unit, float(starts[vname]), var.nominal, var.description, path,
-            _priority(vname, explicit_user, from_params))
-
-
-def _priority(key, user, params):
-    return 2 if key in user else 1 if key in params else 0
+        out.append((f".{key}", d.across_unit, key, d.across_nominal,
+                    f"{d.across} at port {pname}", 0))
+        out.append((f".{pname}.{d.through}", d.through_unit, None, d.through_nominal,
+                    f"{d.through} into port {pname}", 1))
+    for vname, var in cls.variables.items():
+        out.append((f".{vname}", var.unit, vname, var.nominal, var.description, 2))
+    return out
 
 
 def _connection_equations(root, leaves, infos) -> list[_Equation]:
@@ -361,23 +380,29 @@ def _connection_equations(root, leaves, infos) -> list[_Equation]:
 
 
 def _connection_key(e):
-    """``(key, names)`` of a connection equation (``a - b``, or ``q1 + q2 + ... + qn`` summed
-    from the left) for :class:`_Provenance`, or None for another form."""
+    """``(key, names, nodes)`` of a connection equation (``a - b``, or ``q1 + q2 + ... + qn``
+    summed from the left) for :class:`_Provenance` (``nodes``: the row's nodes in
+    :func:`~pvgraph.expr.postorder`), or None for another form."""
     if e.op == "sub" and e.args[0].op == "sym" and e.args[1].op == "sym":
         key, names = ("sub",), [e.args[0].value, e.args[1].value]
+        nodes = [e.args[0], e.args[1], e]
     else:
         names = []
+        nodes = []      # outermost first: each sum, then the term it adds
         while e.op == "add" and e.args[1].op == "sym":
             names.append(e.args[1].value)
+            nodes += (e, e.args[1])
             e = e.args[0]
         if e.op != "sym" or not names:
             return None
         names.append(e.value)
         names.reverse()
+        nodes.append(e)
+        nodes.reverse()
         key = ("sum", len(names))
     if len(set(names)) != len(names):
         return None
-    return ("connection",) + key, tuple(names)
+    return ("connection",) + key, tuple(names), nodes
 
 
 def _node_label(labels):
@@ -413,6 +438,10 @@ def _signal_set(labels, specs, exposed):
 
 def _check_symbols(equations, found, infos, modes):
     """Every symbol an equation reads is a variable or a mode (``found``: their leaves)."""
+    pairs = set(itertools.chain.from_iterable(found))
+    if {nm for _, nm in pairs} - infos.keys() <= modes and \
+            not any(("der", m) in pairs for m in modes):
+        return    # all is well (else the loop below names the first equation at fault)
     for eq, leaves in zip(equations, found):
         for op, name in leaves:
             if name not in infos and name not in modes:
@@ -593,6 +622,7 @@ class _Provenance:
         self.keys: dict = {}
         self._in_token: dict[int, tuple] = {}
         self._builders: dict[int, object] = {}   # key number -> builder, candidate or False
+        self._of_template: dict = {}   # template -> the key numbers of its rows
 
     def number(self, key) -> int:
         k = self.keys.get(key)
@@ -602,6 +632,21 @@ class _Provenance:
 
     def add(self, row, key, names, nodes=None):
         self.rows[id(row)] = (row, self.number(key), names, nodes)
+
+    def template_keys(self, tpl, n) -> list:
+        """The key numbers of the rows ``(tpl, 0)``, ..., ``(tpl, n - 1)``."""
+        got = self._of_template.get(tpl)
+        if got is None or len(got) != n:
+            got = self._of_template[tpl] = [self.number((tpl, k)) for k in range(n)]
+        return got
+
+    def add_rows(self, rows, numbers, names, nodes):
+        """:meth:`add` of each row with its key number, names and nodes (the first
+        ``len(nodes)`` rows have theirs)."""
+        got = self.rows
+        n = len(nodes)
+        for k, (row, key, nm) in enumerate(zip(rows, numbers, names)):
+            got[id(row)] = (row, key, nm, nodes[k] if k < n else None)
 
     def forget_nodes(self):
         """Drop the rows' node lists (needed while substituting only)."""
@@ -634,15 +679,21 @@ class _Provenance:
             return c
         for nm in names:
             if nm not in subs:
-                pattern.append(("keep", place(nm)))
+                c = cls.get(nm)     # place(nm), inline (the common case)
+                if c is None:
+                    c = cls[nm] = len(out)
+                    out.append(nm)
+                pattern.append(("keep", c))
                 continue
             coef, target, off = resolve(nm)
             # the parameters a parametric coefficient or offset brings in are names too
             brought = []
-            for x in (coef, off):
-                if x.__class__ is not float:
-                    tokens.append(x)
-                    brought.extend(place(q) for q in self._params(x))
+            if coef.__class__ is not float:
+                tokens.append(coef)
+                brought.extend(place(q) for q in self._params(coef))
+            if off.__class__ is not float:
+                tokens.append(off)
+                brought.extend(place(q) for q in self._params(off))
             how = (_token(coef), _token(off), tuple(brought))
             pattern.append(("fix",) + how if target is None else ("sub", place(target)) + how)
         names = tuple(out)
@@ -797,14 +848,27 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
     def num(x):
         return x if isinstance(x, float) else E.evaluate(x, values)
 
+    # name -> the state of resolve's walk along the chain of substitutions where it ended
+    # last: a chain only grows at its end (an unknown is eliminated once), so the walk goes on
+    # from there, with the very same arithmetic
+    walked: dict[str, tuple] = {}
+
     def resolve(name):
-        coef, target, off = 1.0, name, 0.0
+        got = walked.get(name)
+        if got is None:
+            coef, target, off = 1.0, name, 0.0
+        else:
+            coef, target, off = got
+            if target not in subs:
+                return got
         while target in subs:
             c2, t2, o2 = subs[target]
             coef, target, off = _kmul(coef, c2), t2, _kadd(_kmul(coef, o2), off)
             if t2 is None:
-                return 0.0, None, off
-        return coef, target, off
+                walked[name] = got = (0.0, None, off)
+                return got
+        walked[name] = got = (coef, target, off)
+        return got
 
     def rank(name):
         info = infos[name]
@@ -834,8 +898,26 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
             out.append(new)
         return expr, out[0], out[1], exact
 
+    # per provenance key: the (kind, place of the name) of its rows' variable and derivative
+    # leaves (one graph up to the names), or None where a leaf is not among the key's names
+    read_forms: dict[int, object] = {}
+
     def read(expr):
+        p = prov.get(expr) if prov is not None else None
+        if p is not None:
+            key, names = p
+            got = read_forms.get(key, False)
+            if got is None:
+                p = None
+            elif got is not False:
+                syms_c, ders_c = got
+                return {names[c] for c in syms_c}, {names[c] for c in ders_c}
         lv = E.leaves(expr, ("sym", "der"))
+        if p is not None:
+            place = {nm: c for c, nm in enumerate(p[1])}
+            read_forms[p[0]] = ([place[nm] for op, nm in lv if op == "sym"],
+                                [place[nm] for op, nm in lv if op == "der"]) \
+                if all(nm in place for _, nm in lv) else None
         return {nm for op, nm in lv if op == "sym"}, {nm for op, nm in lv if op == "der"}
 
     eliminated = subs.keys()
@@ -845,16 +927,18 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
     forms: dict[int, object] = {}
 
     def affine(expr):
+        """:func:`_affine` of ``expr`` and whether its coefficients are known to be floats."""
         p = prov.get(expr) if prov is not None else None
         if p is None:
-            return _affine(expr)
+            form = _affine(expr)
+            return None if form is None else form + (False,)
         key, names = p
         known = forms.get(key, False)
         if known is None:
             return None
         if known is not False and known is not _PARAMETRIC:
             terms, k = known
-            return {names[c]: w for c, w in terms}, k
+            return {names[c]: w for c, w in terms}, k, True
         form = _affine(expr)
         if known is False:
             if form is None:
@@ -865,11 +949,11 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
                 forms[key] = ([(place[v], w) for v, w in form[0].items()], form[1])
             else:
                 forms[key] = _PARAMETRIC
-        return form
+        return None if form is None else form + (False,)
 
     def plain(syms, ders):
         """False where :func:`_affine` cannot hold: a derivative or a mode is read."""
-        return not ders and not any("#" in nm for nm in syms)
+        return not ders and "#" not in "".join(syms)
 
     # Passes over the equations in order until nothing is eliminated. An equation none of whose
     # variables was eliminated since it was last looked at gives the same answer again, so it is
@@ -903,8 +987,8 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
             if form is None:
                 keep.append(item)
                 continue
-            coeffs, k = form
-            if not all(isinstance(w, float) for w in coeffs.values()):
+            coeffs, k, floats = form    # floats: every coefficient is known to be a float
+            if not floats and not all(isinstance(w, float) for w in coeffs.values()):
                 if other is None:
                     other = _scrambled(values)
                 coeffs = {v: w for v, w in coeffs.items() if not _vanishes(w, values, other)}
@@ -931,7 +1015,9 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
                 changed = True
                 continue
             if len(coeffs) == 2:
-                order = sorted(coeffs.items(), key=lambda kv: rank(kv[0]))
+                order = list(coeffs.items())    # by rank; the first of equals first
+                if rank(order[1][0]) < rank(order[0][0]):
+                    order.reverse()
                 if not isinstance(order[0][1], float):
                     order.reverse()
                 (u, a), (w, b) = order
@@ -1022,7 +1108,10 @@ def check_structure(names, eq_labels, inc_y, inc_yp, differential):
     n_eq, n_var = len(eq_labels), len(names)
     if n_eq == 0 and n_var == 0:
         return  # everything was fixed by alias elimination
-    pencil = _incidence(n_eq, n_var, [sorted(set(a) | set(b)) for a, b in zip(inc_y, inc_yp)])
+    rows_y, cols_y = _flat(inc_y)
+    rows_yp, cols_yp = _flat(inc_yp)
+    pencil = _incidence(n_eq, n_var, np.concatenate([rows_y, rows_yp]),
+                        np.concatenate([cols_y, cols_yp]))
     match_eq = maximum_bipartite_matching(pencil, perm_type="column")
     unmatched_eq = [i for i in range(n_eq) if match_eq[i] < 0]
     matched_vars = {int(j) for j in match_eq if j >= 0}
@@ -1046,9 +1135,11 @@ def check_structure(names, eq_labels, inc_y, inc_yp, differential):
         raise StructureError("\n".join(parts))
 
     # index one: solvable for (y' of differential variables, y of algebraic variables)
-    cols = [sorted({j for j in b if differential[j]} | {j for j in a if not differential[j]})
-            for a, b in zip(inc_y, inc_yp)]
-    solve_for = _incidence(n_eq, n_var, cols)
+    differential = np.asarray(differential, dtype=bool)
+    alg = ~differential[cols_y]
+    dif = differential[cols_yp]
+    solve_for = _incidence(n_eq, n_var, np.concatenate([rows_y[alg], rows_yp[dif]]),
+                           np.concatenate([cols_y[alg], cols_yp[dif]]))
     match1 = maximum_bipartite_matching(solve_for, perm_type="column")
     bad_eq = [i for i in range(n_eq) if match1[i] < 0]
     if bad_eq:
@@ -1063,10 +1154,20 @@ def check_structure(names, eq_labels, inc_y, inc_yp, differential):
             "compliance (a VolumeNode, a spring) or remove the rigid constraint.")
 
 
-def _incidence(n_eq, n_var, cols):
-    rows = np.repeat(np.arange(n_eq), [len(c) for c in cols])
-    flat = np.fromiter((j for c in cols for j in c), dtype=np.int64, count=len(rows))
-    return csr_matrix((np.ones(len(rows)), (rows, flat)), shape=(n_eq, n_var))
+def _flat(lists):
+    """``(rows, cols)`` arrays of the entries of per-row lists of column numbers."""
+    lens = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
+    cols = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64,
+                       count=int(lens.sum()))
+    return np.repeat(np.arange(len(lists), dtype=np.int64), lens), cols
+
+
+def _incidence(n_eq, n_var, rows, cols):
+    """The 0/1 incidence matrix (CSR, each row's columns sorted, once each) of the entries
+    ``(rows[k], cols[k])`` (repeats allowed)."""
+    key = np.unique(rows * max(n_var, 1) + cols)
+    rows, cols = np.divmod(key, max(n_var, 1))
+    return csr_matrix((np.ones(len(key)), (rows, cols)), shape=(n_eq, n_var))
 
 
 def _alternating(inc, start, match_eq, *, from_equations):

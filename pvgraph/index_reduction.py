@@ -56,6 +56,7 @@ References
 
 from __future__ import annotations
 
+import itertools
 import math
 import sys
 from dataclasses import dataclass, field, replace
@@ -292,8 +293,7 @@ def reduce_index(equations, infos, subs, events, observed, given=None, incidence
         inc_y.append({pos[v] for v in syms if v in pos})
         inc_yp.append({pos[v] for v in ders if v in pos})
     differential = np.zeros(n, dtype=bool)
-    for cols in inc_yp:
-        differential[list(cols)] = True
+    differential[np.fromiter(itertools.chain.from_iterable(inc_yp), dtype=np.int64)] = True
     highest = [b | {j for j in a if not differential[j]} for a, b in zip(inc_y, inc_yp)]
     if _perfect(highest, n):
         return equations, events, observed, IndexReduction()

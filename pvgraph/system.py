@@ -22,6 +22,7 @@ import copy
 import dataclasses
 import difflib
 import math
+import operator
 import threading
 import warnings
 from dataclasses import dataclass
@@ -1058,7 +1059,8 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     arrays in systems of at least ``ARRAY_MIN_ROWS`` rows; True does so for every shape shared
     by two rows or more; False never (straight-line code only).
     ``provenance``: the compiler's record of rows that are one graph up to their names
-    (``get(row) -> (key, names)``), whose row shapes are then found once per key.
+    (``rows[id(row)] -> (row, key, names, ...)``, see :class:`pvgraph.compiler._Provenance`),
+    whose row shapes are then found once per key.
     """
     from .compiler import check_structure
 
@@ -1133,15 +1135,17 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     for nm in pindex:
         category[nm] = category.get(nm, 0) + 4
     category_of = category.get
+    # id(row) -> (row, key, names, ...), as provenance.get(row) reads it
+    prov_rows = provenance.rows if provenance is not None else None
 
     def shape_of(row):
         # rows of one provenance key and one kind of compiled leaf per name have one shape;
         # their slots read the same names (by their place in the key's names)
-        p = provenance.get(row) if provenance is not None else None
-        if p is None:
+        p = prov_rows.get(id(row)) if prov_rows is not None else None
+        if p is None or p[0] is not row:
             return codegen.row_shape(row, compiled_leaf)
-        key, names = p
-        kinds = tuple([category_of(nm, 0) for nm in names])
+        _, key, names = p[:3]
+        kinds = tuple(map(category_of, names))
         hit = shape_cache.get((key, kinds))
         if hit is None:
             got = codegen.row_shape(row, compiled_leaf)
@@ -1162,10 +1166,9 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
         shape, slots = hit
         if shape is None:
             return None
-        return shape, {"y": [index[names[c]] for c in slots["y"]],
-                       "yp": [index[names[c]] for c in slots["yp"]],
-                       "param": [pindex[names[c]] for c in slots["param"]],
-                       "mode": [mode_index[names[c]] for c in slots["mode"]]}
+        return shape, _Slots(names, slots, lookup)
+
+    lookup = {"y": index, "yp": index, "param": pindex, "mode": mode_index}
 
     groups, scalar_rows = _array_groups(raw, array_rows, compiled_leaf, shape_of=shape_of)
     if groups:
@@ -1298,11 +1301,11 @@ class _ArrayRows:
 
     def __init__(self, rows, leaves_per_row, expr, leaf_of=None):
         self.rows = np.asarray(rows, dtype=np.int64)
-        self.index = {kind: [np.fromiter((lv[kind][s] for lv in leaves_per_row), dtype=np.int64,
-                                         count=len(rows))
-                             for s in range(len(leaves_per_row[0][kind]))]
-                      for kind in codegen.SLOT_LEAVES}
-        self.template = codegen.template(expr, leaves_per_row[0], leaf_of)
+        self.index = _slot_arrays(leaves_per_row)
+        first = leaves_per_row[0]
+        if first.__class__ is _Slots:
+            first = {kind: first[kind] for kind in codegen.SLOT_LEAVES}
+        self.template = codegen.template(expr, first, leaf_of)
         self.label = ""     # a row of the group, for messages
         self.nderived = 0
         self.columns = []   # (kind, slot) of each Jacobian column of the template
@@ -1395,6 +1398,51 @@ class _ArrayRows:
             return base
         return base + [np.broadcast_to(np.asarray(v, dtype=float), self.rows.shape)
                        for v in self.der_fn(0.0, None, None, None, base)]
+
+
+class _Slots:
+    """The payloads of a row's slots, per kind, as the names of its provenance key's places:
+    ``slots[kind]`` lists the place of each slot's name, ``lookup[kind]`` numbers names."""
+
+    __slots__ = ("names", "slots", "lookup")
+
+    def __init__(self, names, slots, lookup):
+        self.names = names
+        self.slots = slots
+        self.lookup = lookup
+
+    def __getitem__(self, kind):
+        number, names = self.lookup[kind], self.names
+        return [number[names[c]] for c in self.slots[kind]]
+
+
+def _slot_arrays(leaves_per_row) -> dict:
+    """``{kind: [payload of slot s in each row (an array), ...]}`` of rows of one shape; the
+    rows given as :class:`_Slots` are looked up in bulk, per provenance key."""
+    n = len(leaves_per_row)
+    first = leaves_per_row[0]
+    out = {kind: [np.empty(n, dtype=np.int64) for _ in range(len(first[kind]))]
+           for kind in codegen.SLOT_LEAVES}
+    batches: dict[int, tuple] = {}
+    for k, lv in enumerate(leaves_per_row):
+        if lv.__class__ is _Slots:
+            b = batches.get(id(lv.slots))
+            if b is None:
+                b = batches[id(lv.slots)] = (lv.slots, lv.lookup, [], [])
+            b[2].append(k)
+            b[3].append(lv.names)
+        else:
+            for kind in codegen.SLOT_LEAVES:
+                for s, v in enumerate(lv[kind]):
+                    out[kind][s][k] = v
+    for slots, lookup, at, names in batches.values():
+        at = np.asarray(at, dtype=np.int64)
+        for kind in codegen.SLOT_LEAVES:
+            number = lookup[kind].__getitem__
+            for s, c in enumerate(slots[kind]):
+                out[kind][s][at] = np.fromiter(map(number, map(operator.itemgetter(c), names)),
+                                               dtype=np.int64, count=len(names))
+    return out
 
 
 class _ArrayPart:
