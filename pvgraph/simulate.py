@@ -203,7 +203,7 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         options.setdefault("newton_iterate_retry", True)
     kwargs = dict(rtol=rtol, atol=atol_vec, algebraic=system.algebraic,
                   jac=system.solver_jacobian(), jac_sparsity=system.jac_sparsity,
-                  events=system.solver_events() or None, t_eval=t_eval, max_step=max_step,
+                  events=system._run_events() or None, t_eval=t_eval, max_step=max_step,
                   calc_initial=calc_initial, var_names=system.names, **options)
     if solver == "pvgraph":
         from .solver import solve_dae

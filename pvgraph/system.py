@@ -393,6 +393,16 @@ class System:
             self.index_reduction.watch(out)
         return out
 
+    def _run_events(self):
+        """``solver_events()`` made once per backend: the events only read the system's
+        modes, parameters and backend through the system, so runs share them."""
+        key = (id(self._cmod), id(self._ev_vector))
+        cached = self.__dict__.get("_events_cache")
+        if cached is None or cached[0] != key:
+            cached = self.__dict__["_events_cache"] = (key, self.solver_events(), self._cmod,
+                                                        self._ev_vector)
+        return list(cached[1])
+
     def index_report(self) -> str:
         """What index reduction did: differentiated equations, dummy derivatives, states."""
         if self.index_reduction is None:
@@ -838,6 +848,7 @@ class System:
         new = copy.copy(self)
         new._cst = None
         new.__dict__.pop("_cstates", None)
+        new.__dict__.pop("_events_cache", None)     # bound to this system
         new._P = list(self._P)
         new.parameters = dict(self.parameters)
         new._models = dict(self._models)

@@ -72,6 +72,18 @@ def fd_increments(z, typical, direction):
     return inc
 
 
+def _compiled_owner(jac):
+    """The System whose ``jacobian_dense`` or ``jacobian`` ``jac`` is, or None."""
+    owner = getattr(jac, "__self__", None)
+    if owner is None or not hasattr(owner, "jacobian_values"):
+        return None
+    from pvgraph.system import System
+    if isinstance(owner, System) and getattr(jac, "__func__", None) in (
+            System.jacobian_dense, System.jacobian):
+        return owner
+    return None
+
+
 class JacobianEvaluator:
     """Evaluate ``diag-weighted`` combinations of dF/dy and dF/dy' (user function or FD).
 
@@ -164,6 +176,16 @@ class JacobianEvaluator:
             self._detect_pattern(t, y, yp, r, 1.0)
         if self.jac is not None:
             self.nje += 2
+            system = _compiled_owner(self.jac)
+            if system is not None and not self.sparse:
+                # a System's Jacobian: the same arithmetic on its entries only (the other
+                # entries are 0 * cy + 0 * cyp = 0 either way)
+                v0 = system.jacobian_values(t, y, yp, 0.0)
+                v1 = system.jacobian_values(t, y, yp, 1.0)
+                cols = system._cols
+                m = np.zeros((self.n, self.n))
+                m[system._rows, cols] = v0 * cy[cols] + (v1 - v0) * cyp[cols]
+                return m
             j0 = self._convert(self.jac(t, y, yp, 0.0))
             j1 = self._convert(self.jac(t, y, yp, 1.0))
             if self.sparse:

@@ -113,6 +113,24 @@ def rig():
                      U_input=4.24).compile(backend="c")
 
 
+def test_mixed_matrices_of_a_compiled_jacobian_on_its_entries(rig):
+    # the initialisation's matrices (column j: dF/dy_j or dF/dy'_j) built from the
+    # Jacobian's entries are the dense formula's bit for bit, on both routes
+    from pvgraph.solver.linalg import JacobianEvaluator
+    rng = np.random.default_rng(3)
+    y = rig.y0 * (1.0 + 0.01 * rng.standard_normal(rig.n))
+    yp = rng.standard_normal(rig.n)
+    for s in (rig, rig.with_params({}).use_backend("python")):
+        jac = JacobianEvaluator(s.residual, s.n, s.jacobian_dense, s.jac_sparsity)
+        for _ in range(3):
+            cy = (rng.random(s.n) < 0.5).astype(float)
+            cyp = 1.0 - cy
+            fast = jac.mixed_matrix(0.1, y, yp, None, cy, cyp, np.ones(s.n))
+            j0, j1 = s.jacobian_dense(0.1, y, yp, 0.0), s.jacobian_dense(0.1, y, yp, 1.0)
+            assert np.array_equal(fast, j0 * cy + (j1 - j0) * cyp)
+            assert np.count_nonzero(fast) > s.n
+
+
 def test_rig_test_2_with_events_and_mode_changes(rig, c_steps):
     # PVG 32 rig test 2 for 0.3 s (91 unknowns, dense iteration matrix): the load valve
     # switches at 10 ms, chambers cavitate (mode changes), error-test failures occur
