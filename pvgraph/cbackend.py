@@ -341,13 +341,19 @@ def source_text(res, jac, ev) -> tuple[str, _Tables]:
 def build(res, jac, ev, *, name: str = "system") -> CModule:
     """Write, compile (or find in the cache) and load the C form of these expressions."""
     source, tables = source_text(res, jac, ev)
+    path = compiled(source, name)
+    return CModule(path, tables, len(res), len(jac), len(ev), source)
+
+
+def compiled(source: str, name: str) -> Path:
+    """The shared library of C ``source`` (``name`` for messages), built with CFLAGS by the
+    machine's compiler, or found in the cache by the hash of source, compiler and flags."""
     cc = c_compiler()
     if cc is None:
         raise CBackendError("no C compiler found (set CC, or install cc, gcc or clang); the "
                             "Python code runs without one")
     digest = hashlib.sha256("\0".join([source, cc] + CFLAGS).encode()).hexdigest()[:24]
-    path = _cached(digest, source, cc, name)
-    return CModule(path, tables, len(res), len(jac), len(ev), source)
+    return _cached(digest, source, cc, name)
 
 
 def _cached(digest: str, source: str, cc: str, name: str) -> Path:

@@ -30,7 +30,7 @@ import inspect
 import math
 import re
 import types
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable, ClassVar
 
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator

@@ -222,10 +222,22 @@ static int nonfinite_from(const pv_lu *c, const double *a, int64_t k)
    (-1 for unpivoted rows), pos / row_at, L's columns with rows of A, lnz = Lp[k0],
    unz = Up[k0], anz = Ap[k0], x zero, mark below k0. Records each column's nonzero rows
    (Ap / Ai) for the next factorisation. */
+/* LAPACK's interchange of rows k and pos[piv] (its row order decides ties); ipiv[k] */
+static void interchange(pv_lu *c, idx k, idx piv)
+{
+    idx *pos = c->pos, *row_at = c->row_at;
+    idx at = pos[piv], other = row_at[k];
+    c->ipiv[k] = at;
+    row_at[at] = other;
+    pos[other] = at;
+    row_at[k] = piv;
+    pos[piv] = k;
+}
+
 static int64_t factor_from(pv_lu *c, const double *a, idx k0)
 {
     const idx n = (idx) c->n;
-    idx *pinv = c->pinv, *pos = c->pos, *row_at = c->row_at, *mark = c->mark, *xi = c->xi;
+    idx *pinv = c->pinv, *pos = c->pos, *mark = c->mark, *xi = c->xi;
     double *x = c->x;
     int64_t status = 0;
     c->step = -1;
@@ -305,13 +317,7 @@ static int64_t factor_from(pv_lu *c, const double *a, idx k0)
         c->Ud[k] = pivot;
         pinv[piv] = k;
         c->p[k] = piv;
-        /* LAPACK's interchange of rows k and pos[piv], for its order of ties */
-        idx at = pos[piv], other = row_at[k];
-        c->ipiv[k] = at;
-        row_at[at] = other;
-        pos[other] = at;
-        row_at[k] = piv;
-        pos[piv] = k;
+        interchange(c, k, piv);
         x[piv] = 0.0;
         idx *Lio = c->Li;
         double *Lxo = c->Lx;
@@ -423,12 +429,7 @@ static int64_t refactor(pv_lu *c, const double *a)
         }
         double pivot = x[piv];
         c->Ud[k] = pivot;
-        idx at = pos[piv], other = row_at[k];
-        c->ipiv[k] = at;
-        row_at[at] = other;
-        pos[other] = at;
-        row_at[k] = piv;
-        pos[piv] = k;
+        interchange(c, k, piv);
         x[piv] = 0.0;
         for (idx s = Lp[k]; s < Lp[k + 1]; s++) {
             idx r = p[Li[s]];

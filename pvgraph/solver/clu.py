@@ -45,7 +45,6 @@ References
 from __future__ import annotations
 
 import ctypes
-import hashlib
 import threading
 import weakref
 from pathlib import Path
@@ -81,12 +80,8 @@ _fn_addresses = None
 
 def _load():
     from pvgraph import cbackend
-    cc = cbackend.c_compiler()
-    if cc is None:
-        raise cbackend.CBackendError("no C compiler found (set CC, or install cc, gcc or clang)")
     source = Path(__file__).with_name("clu.c").read_text()
-    digest = hashlib.sha256("\0".join([source, cc] + cbackend.CFLAGS).encode()).hexdigest()[:24]
-    lib = ctypes.CDLL(str(cbackend._cached(digest, source, cc, "the sparse LU kernel")))
+    lib = ctypes.CDLL(str(cbackend.compiled(source, "the sparse LU kernel")))
     lib.pv_lu_new.argtypes = [_i64, _vp]
     lib.pv_lu_new.restype = _vp
     lib.pv_lu_free.argtypes = [_vp]

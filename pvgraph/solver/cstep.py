@@ -44,7 +44,6 @@ requires the C step.
 from __future__ import annotations
 
 import ctypes
-import hashlib
 import threading
 from pathlib import Path
 
@@ -174,13 +173,8 @@ def _scipy_lapack(name):
 
 def _load():
     from pvgraph import cbackend
-    cc = cbackend.c_compiler()
-    if cc is None:
-        raise cbackend.CBackendError("no C compiler")
     source = (Path(__file__).with_name("cstep.c")).read_text()
-    digest = hashlib.sha256("\0".join([source, cc] + cbackend.CFLAGS).encode()).hexdigest()[:24]
-    path = cbackend._cached(digest, source, cc, "the BDF step kernel")
-    lib = ctypes.CDLL(str(path))
+    lib = ctypes.CDLL(str(cbackend.compiled(source, "the BDF step kernel")))
     step = lib.pv_step
     step.argtypes = [ctypes.POINTER(_State)]
     step.restype = ctypes.c_int
