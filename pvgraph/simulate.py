@@ -169,6 +169,9 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         Parameter values by name (``{"orifice.A": 2e-6}``), applied with
         :meth:`System.with_params` without compiling again; the solution's ``system`` carries
         them. ``target.parameter_names`` lists the names.
+    **options
+        Passed on to the solver: for ``"pvgraph"`` :func:`pvgraph.solver.solve_dae`'s options
+        (``c_step``, ``linear_solver``, ``max_steps``, ``suppress_alg``, ...).
     """
     system = target.compile() if isinstance(target, Circuit) else target
     if not isinstance(system, System):
