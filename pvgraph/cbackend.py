@@ -338,6 +338,27 @@ def source_text(res, jac, ev) -> tuple[str, _Tables]:
     return "\n".join(parts), tables
 
 
+class LoadOnce:
+    """A library loaded on first use, once per process: ``get()`` is the library or None,
+    ``error`` why it could not be loaded (a missing compiler, a failed build or check)."""
+
+    def __init__(self, load):
+        self._load = load
+        self._value = None
+        self.error = None
+        self._lock = threading.Lock()
+
+    def get(self):
+        if self._value is None and self.error is None:
+            with self._lock:
+                if self._value is None and self.error is None:
+                    try:
+                        self._value = self._load()
+                    except Exception as exc:     # the caller falls back and reports it
+                        self.error = f"{type(exc).__name__}: {exc}"
+        return self._value
+
+
 def build(res, jac, ev, *, name: str = "system") -> CModule:
     """Write, compile (or find in the cache) and load the C form of these expressions."""
     source, tables = source_text(res, jac, ev)

@@ -396,12 +396,11 @@ class System:
     def _run_events(self):
         """``solver_events()`` made once per backend: the events only read the system's
         modes, parameters and backend through the system, so runs share them."""
-        key = (id(self._cmod), id(self._ev_vector))
         cached = self.__dict__.get("_events_cache")
-        if cached is None or cached[0] != key:
-            cached = self.__dict__["_events_cache"] = (key, self.solver_events(), self._cmod,
-                                                        self._ev_vector)
-        return list(cached[1])
+        if cached is None or cached[0] is not self._cmod or cached[1] is not self._ev_vector:
+            cached = self.__dict__["_events_cache"] = (self._cmod, self._ev_vector,
+                                                        self.solver_events())
+        return list(cached[2])
 
     def index_report(self) -> str:
         """What index reduction did: differentiated equations, dummy derivatives, states."""

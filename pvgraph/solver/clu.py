@@ -45,13 +45,14 @@ References
 from __future__ import annotations
 
 import ctypes
-import threading
 import weakref
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
+
+from pvgraph.cbackend import LoadOnce
 
 __all__ = ["SparseLU", "available", "load_error", "column_order"]
 
@@ -72,9 +73,6 @@ class _Context(ctypes.Structure):
                 + [(k, _dp) for k in ("Lx", "Ux", "Ud")])
 
 
-_lock = threading.Lock()
-_lib = None
-_lib_error = None
 _fn_addresses = None
 
 
@@ -93,18 +91,12 @@ def _load():
     return lib
 
 
+_kernel = LoadOnce(_load)
+
+
 def library():
     """The loaded kernel (a ctypes library), or None when it cannot be built."""
-    global _lib, _lib_error
-    if _lib is not None or _lib_error is not None:
-        return _lib
-    with _lock:
-        if _lib is None and _lib_error is None:
-            try:
-                _lib = _load()
-            except Exception as exc:     # no compiler, a failed build, a missing symbol
-                _lib_error = f"{type(exc).__name__}: {exc}"
-    return _lib
+    return _kernel.get()
 
 
 def _addresses(lib):
@@ -124,7 +116,7 @@ def available():
 def load_error():
     """Why the kernel is unavailable (None when it loaded)."""
     library()
-    return _lib_error
+    return _kernel.error
 
 
 def column_order(pattern, ordering="COLAMD"):
@@ -186,7 +178,7 @@ class SparseLU:
         if lib is None:
             from pvgraph.cbackend import CBackendError
             raise CBackendError(f"the sparse LU kernel (pvgraph/solver/clu.c) is unavailable: "
-                                f"{_lib_error}")
+                                f"{_kernel.error}")
         n = int(n)
         if not 1 <= n <= N_MAX:
             raise ValueError(f"SparseLU needs 1 <= n <= {N_MAX}, got {n}")

@@ -44,11 +44,11 @@ requires the C step.
 from __future__ import annotations
 
 import ctypes
-import threading
 from pathlib import Path
 
 import numpy as np
 
+from pvgraph.cbackend import LoadOnce
 from pvgraph.errors import SolverError
 from pvgraph.solver.ida import (HARMONIC, JACOBIAN_FAIL, MAX_ORDER, SETUP_FAIL, SOLVER_NAME,
                                 IDAIntegrator, _nonfinite_entries)
@@ -118,29 +118,14 @@ class _Kernel:
         self.blas64 = blas64
 
 
-_lock = threading.Lock()
-_kernel = None
-_kernel_error = None
-
-
 def kernel():
     """The loaded step kernel, or None (no compiler, no BLAS routines, a failed self-check)."""
-    global _kernel, _kernel_error
-    if _kernel is not None or _kernel_error is not None:
-        return _kernel
-    with _lock:
-        if _kernel is None and _kernel_error is None:
-            try:
-                _kernel = _load()
-            except Exception as exc:       # no compiler, no symbols: the Python step runs
-                _kernel_error = f"{type(exc).__name__}: {exc}"
-    return _kernel
+    return _kernel.get()
 
 
 def kernel_error():
-    """Why the kernel could not be loaded (None if it was, or was not tried)."""
-    kernel()
-    return _kernel_error
+    """Why the kernel could not be loaded (None when it was)."""
+    return None if kernel() is not None else _kernel.error
 
 
 def _numpy_blas():
@@ -189,6 +174,9 @@ def _load():
                 _numpy_blas()[3])
     _self_check(k)
     return k
+
+
+_kernel = LoadOnce(_load)
 
 
 def _self_check(k):
@@ -633,10 +621,8 @@ def c_run(integ, n, t_end, t_eval, nst_limit):
 def _compiled_dense_jacobian(system, jacobian):
     """Is the iteration matrix the system's compiled Jacobian (``jacobian_dense``, or
     ``jacobian`` made dense for the C sparse LU), so pv_jacobian can evaluate it in C?"""
-    from pvgraph.system import System
-    jac = jacobian.jac
-    return (getattr(jac, "__self__", None) is system
-            and getattr(jac, "__func__", None) in (System.jacobian_dense, System.jacobian)
+    from pvgraph.solver.linalg import _compiled_owner
+    return (_compiled_owner(jacobian.jac) is system
             and not jacobian.sparse and not jacobian.detect
             and system._cmod.n_jac == len(system._rows) == len(system._cols))
 

@@ -323,8 +323,7 @@ def test_the_c_entry_points_by_address():
 
 
 def test_without_a_compiler_it_reports_what_is_missing(monkeypatch):
-    monkeypatch.setattr(clu, "_lib", None)
-    monkeypatch.setattr(clu, "_lib_error", None)
+    monkeypatch.setattr(clu, "_kernel", cbackend.LoadOnce(clu._load))   # not loaded yet
     monkeypatch.setattr(cbackend, "c_compiler", lambda: None)
     assert not clu.available()
     assert "no C compiler" in clu.load_error()
@@ -336,8 +335,7 @@ def test_without_a_compiler_it_reports_what_is_missing(monkeypatch):
 
 
 def test_a_compiler_that_cannot_run_is_reported(monkeypatch, tmp_path):
-    monkeypatch.setattr(clu, "_lib", None)
-    monkeypatch.setattr(clu, "_lib_error", None)
+    monkeypatch.setattr(clu, "_kernel", cbackend.LoadOnce(clu._load))   # not loaded yet
     monkeypatch.setenv("PVGRAPH_CACHE_DIR", str(tmp_path))
     monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
     assert not clu.available()

@@ -300,8 +300,7 @@ def test_c_step_true_where_it_does_not_apply_is_refused():
 def test_without_a_compiler_the_python_step_runs(monkeypatch, c_steps):
     s = _pump_volume_orifice().compile(backend="c")
     ref = simulate(s, 0.5)
-    monkeypatch.setattr(cstep, "_kernel", None)
-    monkeypatch.setattr(cstep, "_kernel_error", None)
+    monkeypatch.setattr(cstep, "_kernel", cbackend.LoadOnce(cstep._load))   # not loaded yet
     monkeypatch.setattr(cbackend, "c_compiler", lambda: None)
     got = simulate(s, 0.5)
     assert c_steps["n"] == ref.stats["nsteps"] > 0       # the first run only
