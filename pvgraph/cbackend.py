@@ -366,18 +366,24 @@ def build(res, jac, ev, *, name: str = "system") -> CModule:
     return CModule(path, tables, len(res), len(jac), len(ev), source)
 
 
-def compiled(source: str, name: str) -> Path:
+def compiled(source: str, name: str, opt: str = "-O1") -> Path:
     """The shared library of C ``source`` (``name`` for messages), built with CFLAGS by the
-    machine's compiler, or found in the cache by the hash of source, compiler and flags."""
+    machine's compiler, or found in the cache by the hash of source, compiler and flags.
+
+    ``opt`` is the optimisation level: ``-O1`` for generated code (it can be megabytes; its
+    build time grows fast with the level), ``-O3`` for the solver's fixed kernels. None of the
+    levels reorders floating-point arithmetic (CFLAGS forbid it), so the numbers do not
+    depend on it."""
     cc = c_compiler()
     if cc is None:
         raise CBackendError("no C compiler found (set CC, or install cc, gcc or clang); the "
                             "Python code runs without one")
-    digest = hashlib.sha256("\0".join([source, cc] + CFLAGS).encode()).hexdigest()[:24]
-    return _cached(digest, source, cc, name)
+    flags = [opt if f == "-O1" else f for f in CFLAGS]
+    digest = hashlib.sha256("\0".join([source, cc] + flags).encode()).hexdigest()[:24]
+    return _cached(digest, source, cc, name, flags)
 
 
-def _cached(digest: str, source: str, cc: str, name: str) -> Path:
+def _cached(digest: str, source: str, cc: str, name: str, flags: list) -> Path:
     folder = cache_dir()
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -398,7 +404,7 @@ def _cached(digest: str, source: str, cc: str, name: str) -> Path:
         src.write_text(source)
         out = Path(tmp) / "system.so"
         try:
-            proc = subprocess.run([cc, *CFLAGS, "-o", str(out), str(src), "-lm"],
+            proc = subprocess.run([cc, *flags, "-o", str(out), str(src), "-lm"],
                                   capture_output=True, text=True)
         except OSError as exc:
             raise CBackendError(f"{name}: cannot run the C compiler {cc!r} ({exc.strerror}); "

@@ -55,6 +55,7 @@
  *   operations", SIAM J. Sci. Stat. Comput. 9 (1988) 862-874.
  *   T. A. Davis, "Direct Methods for Sparse Linear Systems", SIAM 2006, ch. 6 (cs_lu, cs_dfs).
  */
+#include <float.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -71,6 +72,8 @@ typedef struct {
     idx *Lp, *Li, *Up, *Ui, *Ap, *Ai;
     double *Lx, *Ux, *Ud, *x, *w;
     idx *pos, *row_at, *xi, *mark;
+    double *Uinv;       /* 1 / Ud where that is finite, else 0: the solve multiplies (the
+                           latency of a division would chain from row to row) */
 } pv_lu;
 
 #define PV_LU_NMAX 46340      /* n * n fits a 32-bit index */
@@ -80,7 +83,8 @@ void pv_lu_free(void *vctx)
     pv_lu *c = (pv_lu *) vctx;
     if (c == NULL) return;
     void *arrays[] = {c->q, c->p, c->pinv, c->ipiv, c->Lp, c->Li, c->Up, c->Ui, c->Ap, c->Ai,
-                      c->Lx, c->Ux, c->Ud, c->x, c->w, c->pos, c->row_at, c->xi, c->mark};
+                      c->Lx, c->Ux, c->Ud, c->x, c->w, c->pos, c->row_at, c->xi, c->mark,
+                      c->Uinv};
     for (size_t k = 0; k < sizeof arrays / sizeof arrays[0]; k++) free(arrays[k]);
     free(c);
 }
@@ -109,6 +113,7 @@ void *pv_lu_new(int64_t n, const int64_t *perm_c)
     c->Lx = malloc((size_t) c->lcap * sizeof(double));
     c->Ux = malloc((size_t) c->ucap * sizeof(double));
     c->Ud = calloc(un, sizeof(double));
+    c->Uinv = calloc(un, sizeof(double));
     c->x = calloc(un, sizeof(double));
     c->w = calloc(un, sizeof(double));
     c->pos = malloc(un * sizeof(idx));
@@ -116,7 +121,7 @@ void *pv_lu_new(int64_t n, const int64_t *perm_c)
     c->xi = malloc(2 * un * sizeof(idx));
     c->mark = malloc(un * sizeof(idx));
     if (!c->q || !c->p || !c->pinv || !c->ipiv || !c->Lp || !c->Up || !c->Ap || !c->Li
-        || !c->Ui || !c->Ai || !c->Lx || !c->Ux || !c->Ud || !c->x || !c->w || !c->pos
+        || !c->Ui || !c->Ai || !c->Lx || !c->Ux || !c->Ud || !c->Uinv || !c->x || !c->w || !c->pos
         || !c->row_at || !c->xi || !c->mark) {
         pv_lu_free(c);
         return NULL;
@@ -461,6 +466,9 @@ int64_t pv_lu_factor(void *vctx, const double *a)
         status = factor_from(c, a, 0);
     }
     c->status = status;
+    if (status == 0)
+        for (int64_t k = 0; k < c->n; k++)       /* as LAPACK: no reciprocal below sfmin */
+            c->Uinv[k] = fabs(c->Ud[k]) >= DBL_MIN ? 1.0 / c->Ud[k] : 0.0;
     return status;
 }
 
@@ -471,7 +479,7 @@ void pv_lu_solve(const void *vctx, double *b)
     const pv_lu *c = (const pv_lu *) vctx;
     const idx n = (idx) c->n;
     const idx *p = c->p, *q = c->q, *Lp = c->Lp, *Li = c->Li, *Up = c->Up, *Ui = c->Ui;
-    const double *Lx = c->Lx, *Ux = c->Ux, *Ud = c->Ud;
+    const double *Lx = c->Lx, *Ux = c->Ux, *Ud = c->Ud, *Uinv = c->Uinv;
     double *w = c->w;
     for (idx k = 0; k < n; k++) w[k] = b[p[k]];
     for (idx k = 0; k < n; k++) {
@@ -482,7 +490,7 @@ void pv_lu_solve(const void *vctx, double *b)
     for (idx k = n - 1; k >= 0; k--) {
         double wk = w[k];
         if (wk != 0.0) {
-            wk /= Ud[k];
+            if (Uinv[k] != 0.0) wk *= Uinv[k]; else wk /= Ud[k];
             w[k] = wk;
             for (idx t = Up[k]; t < Up[k + 1]; t++) w[Ui[t]] -= Ux[t] * wk;
         }

@@ -79,7 +79,7 @@ _fn_addresses = None
 def _load():
     from pvgraph import cbackend
     source = Path(__file__).with_name("clu.c").read_text()
-    lib = ctypes.CDLL(str(cbackend.compiled(source, "the sparse LU kernel")))
+    lib = ctypes.CDLL(str(cbackend.compiled(source, "the sparse LU kernel", opt="-O3")))
     lib.pv_lu_new.argtypes = [_i64, _vp]
     lib.pv_lu_new.restype = _vp
     lib.pv_lu_free.argtypes = [_vp]

@@ -159,7 +159,7 @@ def _scipy_lapack(name):
 def _load():
     from pvgraph import cbackend
     source = (Path(__file__).with_name("cstep.c")).read_text()
-    lib = ctypes.CDLL(str(cbackend.compiled(source, "the BDF step kernel")))
+    lib = ctypes.CDLL(str(cbackend.compiled(source, "the BDF step kernel", opt="-O3")))
     step = lib.pv_step
     step.argtypes = [ctypes.POINTER(_State)]
     step.restype = ctypes.c_int

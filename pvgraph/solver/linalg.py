@@ -121,12 +121,17 @@ class JacobianEvaluator:
     def _use_pattern(self, sparsity):
         """Store the pattern of the iteration matrix and, for differences, its column groups."""
         n, jac = self.n, self.jac
-        pattern = sp.csc_matrix(sparsity, dtype=float)
-        if pattern.shape != (n, n):
-            raise ValueError(f"jac_sparsity has shape {pattern.shape}, expected ({n}, {n})")
-        pattern.data[:] = 1.0
-        pattern.eliminate_zeros()
-        pattern.sort_indices()
+        if (sp.issparse(sparsity) and sparsity.format == "csc" and sparsity.dtype == float
+                and sparsity.shape == (n, n) and sparsity.has_canonical_format
+                and np.all(sparsity.data == 1.0)):
+            pattern = sparsity      # already canonical (a System's): read, never written
+        else:
+            pattern = sp.csc_matrix(sparsity, dtype=float)
+            if pattern.shape != (n, n):
+                raise ValueError(f"jac_sparsity has shape {pattern.shape}, expected ({n}, {n})")
+            pattern.data[:] = 1.0
+            pattern.eliminate_zeros()
+            pattern.sort_indices()
         self.pattern = pattern
         self.sparse = n >= SPARSE_MIN_N and not self.dense_only
         if jac is None:

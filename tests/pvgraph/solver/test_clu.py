@@ -248,6 +248,27 @@ def test_subnormal_and_negative_zero_entries():
     assert lu.factor(a) == 14 == sla.lapack.dgetrf(a)[2]
 
 
+def test_pivots_at_the_ends_of_the_exponent_range_solve_exactly():
+    # the solve multiplies by 1 / pivot where that is finite and divides below it (a
+    # reciprocal of a subnormal overflows); powers of two make every quotient exact
+    n = 6
+    pivots = np.array([2.0 ** -1022, 2.0 ** 1023, 2.0 ** -1070, 1.0, -(2.0 ** -1000), 2.0 ** 900])
+    a = np.diag(pivots)
+    lu = clu.SparseLU(n, perm_c=np.arange(n))
+    assert lu.factor(a) == 0
+    x = np.array([3.0, -0.5, 7.0, 1.0, 2.0 ** 50, -(2.0 ** -60)])
+    assert np.array_equal(lu.solve(a @ x), x)
+    # and a general system with a badly scaled row keeps a backward error of a few eps
+    rng = np.random.default_rng(5)
+    m = rng.standard_normal((40, 40)) + 40 * np.eye(40)
+    m[7] *= 1e-290
+    b = rng.standard_normal(40)
+    lu = clu.SparseLU(40, perm_c=np.arange(40))
+    assert lu.factor(m) == 0
+    xs = lu.solve(b.copy())
+    assert np.allclose(xs, np.linalg.solve(m, b), rtol=1e-10, atol=0.0)
+
+
 def test_entries_outside_the_pattern_are_factorised():
     # the kernel reads the structure from each matrix: the pattern only chose the column order
     rng = np.random.default_rng(11)
