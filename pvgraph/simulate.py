@@ -172,6 +172,15 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     **options
         Passed on to the solver: for ``"pvgraph"`` :func:`pvgraph.solver.solve_dae`'s options
         (``c_step``, ``linear_solver``, ``max_steps``, ``suppress_alg``, ...).
+
+    With the built-in solver the algebraic variables (flows, forces, the pressures of
+    chambers without volume) stay out of the local error test when the circuit has
+    differential ones (``suppress_alg=True``): their kinks (friction, end stops, tables)
+    would otherwise cut the steps without making the states more accurate. A circuit without
+    any differential variable keeps them all in the test. A fast source that drives only
+    algebraic parts (a sine pressure source on an orifice, beside a slow volume) is then
+    followed at the steps the states need; give ``max_step`` or ``suppress_alg=False`` to
+    resolve it.
     """
     system = target.compile() if isinstance(target, Circuit) else target
     if not isinstance(system, System):
@@ -201,7 +210,9 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         # circuits: algebraic forces and flows of friction, end stops and tables have kinks
         # on which Newton fails; leaving them out of the error test and not growing the step
         # right after a failure keep the rig running (solve_dae's defaults, IDA's, do not)
-        options.setdefault("suppress_alg", True)
+        # ... unless nothing would be left in it: with no differential variable the step
+        # would grow unchecked over whatever drives the algebraic ones (a sine source)
+        options.setdefault("suppress_alg", bool(np.any(~np.asarray(system.algebraic))))
         options.setdefault("no_growth_after_failure", True)
         options.setdefault("newton_iterate_retry", True)
     kwargs = dict(rtol=rtol, atol=atol_vec, algebraic=system.algebraic,

@@ -164,6 +164,8 @@ def consistent_initial_conditions(fun, t0, y0, yp0, mode, algebraic, jacobian, r
         if merit <= IC_TOL:
             y -= cy * dz
             yp -= cyp * dz
+            if mode == "algebraic" and cy.any():
+                algebraic_rates(fun, t0, y, yp, cy, lu, t_span_length)
             return y, yp
         lam = 1.0
         while True:
@@ -188,6 +190,32 @@ def consistent_initial_conditions(fun, t0, y0, yp0, mode, algebraic, jacobian, r
         f"Newton iterations; the largest corrections are in {', '.join(map(repr, names))}; "
         + _equation_names(r, var_names)
         + ". Check the algebraic mask and give better starting values for these variables.")
+
+
+def algebraic_rates(fun, t0, y, yp, cy, lu, t_span_length):
+    """Set y' of the algebraic variables (``cy`` = 1) to their rates at a consistent point.
+
+    The residual does not read them, but the first BDF step predicts with them: a variable
+    driven by the time (a position set by a sine, a pressure source following a table) that
+    starts with y' = 0 fails the first error tests until the step is tiny (SUNDIALS IDA gives
+    up). Along the solution, d/dt F(t, y, y') = 0 gives, with the differential y' known,
+    ``M z = -(F_t + F_y,d y'_d)`` for z = (y'_a, y''_d), where M is the matrix of the
+    consistent initialisation (columns dF/dy_a and dF/dy'_d), already factorised in ``lu``.
+    The right side is one forward difference of F along (1, y'_d, 0). ``yp`` is changed in
+    place; where anything is not finite it is left as it was.
+    """
+    delta = 1e-8 * max(abs(t0), abs(t_span_length), 1e-6)
+    move = (1.0 - cy) * yp
+    r0 = np.asarray(fun(t0, y, yp), dtype=float)
+    r1 = np.asarray(fun(t0 + delta, y + delta * move, yp), dtype=float)
+    rhs = (r1 - r0) / delta
+    if not np.all(np.isfinite(rhs)):
+        return
+    z = lu.solve(rhs)
+    if not np.all(np.isfinite(z)):
+        return
+    alg = cy != 0.0
+    yp[alg] = -z[alg]
 
 
 def _raise_singular(info, mode, cy, t0, var_names):
