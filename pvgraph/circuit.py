@@ -174,6 +174,11 @@ class Circuit:
             raise CircuitError(f"circuit {self.path!r}: connect() needs at least two ports, "
                                f"got {len(ports)}")
         refs = tuple(self._resolve(p) for p in ports)
+        paths = [r.path() for r in refs]
+        twice = sorted({q for q in paths if paths.count(q) > 1})
+        if twice:
+            raise CircuitError(f"circuit {self.path!r}: connect() joins port {twice[0]!r} to "
+                               f"itself; a connection joins two or more different ports")
         domains = {r.port.domain.name for r in refs}
         if len(domains) > 1:
             desc = ", ".join(f"{r.path()} ({r.port.domain.name})" for r in refs)

@@ -394,17 +394,18 @@ def cmd_circuits(args) -> int:
 # --------------------------------------------------------------------------------------------
 # sweep
 
-def _check_param_name(name: str, valid) -> None:
+def _check_param_name(name: str, valid, option: str = "--param") -> None:
     if name in valid:
         return
     if any(v.startswith(name + ".") for v in valid):
         example = next(v for v in valid if v.startswith(name + "."))
-        raise PvgraphError(f"--param {name!r} is a group of parameters; name one of its "
-                           f"fields, e.g. {example!r} (see pvgraph sweep --list-params)")
+        raise PvgraphError(f"{option} {name!r} is a group of parameters; name one of its "
+                           f"fields, e.g. {example!r} (see pvgraph sweep TARGET --list-params)")
     close = difflib.get_close_matches(name, list(valid), n=3, cutoff=0.6)
     hint = f"; did you mean {', '.join(map(repr, close))}?" if close else "."
-    raise PvgraphError(f"unknown parameter {name!r}{hint} Valid names are U_input and the "
-                       f"dotted PVG32Params fields; list them with pvgraph sweep --list-params")
+    raise PvgraphError(f"{option}: unknown parameter {name!r}{hint} The circuit's parameters "
+                       f"are component.field names; list them with pvgraph sweep TARGET "
+                       f"--list-params")
 
 
 def _parse_number(text: str, name: str, unit: str | None = None) -> float:
@@ -646,7 +647,7 @@ def cmd_linearize(args) -> int:
                            "source's value), the input of the linear model")
     valid = circuit.parameters()
     for name in args.input:
-        _check_param_name(name, valid)
+        _check_param_name(name, valid, "--input")
     u0 = {name: float(valid[name][0]) for name in args.input}
     system = circuit.compile()
     if not args.output:
@@ -701,6 +702,33 @@ def cmd_linearize(args) -> int:
 
 
 # --------------------------------------------------------------------------------------------
+def _tolerance(text: str) -> float:
+    """argparse type of --rtol: a number in (0, 1)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(value) and 0.0 < value < 1.0):
+        raise argparse.ArgumentTypeError(f"{text!r}: a relative tolerance is a number between "
+                                         f"0 and 1, e.g. 1e-5")
+    return value
+
+
+#: the figure formats the plotting commands write (matplotlib's, by extension)
+FIGURE_SUFFIXES = (".png", ".svg", ".pdf")
+
+
+def _figure_path(text: str) -> str:
+    """argparse type of --plot and --bode: a file name with a figure extension, checked
+    before anything runs."""
+    suffix = os.path.splitext(text)[1].lower()
+    if suffix not in FIGURE_SUFFIXES:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: the figure format comes from the extension; use one of "
+            f"{', '.join(FIGURE_SUFFIXES)}")
+    return text
+
+
 def _add_target(p, help_text="circuit: FILE.py:FUNCTION, MODULE:FUNCTION, a model file or a "
                              "registered name (pvgraph circuits)", optional=False):
     p.add_argument("target", nargs="?" if optional else None, help=help_text)
@@ -759,11 +787,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--t-end", type=float, default=None,
                    help=f"end time [s] (default: the circuit's, else {DEFAULT_T_END:g})")
     s.add_argument("--solver", default="pvgraph", choices=["pvgraph", "ida"])
-    s.add_argument("--rtol", type=float, default=1e-5)
+    s.add_argument("--rtol", type=_tolerance, default=1e-5,
+                   help="relative tolerance (default: %(default)s)")
     s.add_argument("--var", action="append", help="variable to report (repeatable; names: "
                                                   "pvgraph vars TARGET)")
     s.add_argument("--csv", help="write the variables over time to this CSV file (SI)")
-    s.add_argument("--plot", help="plot the variables to this PNG or SVG file")
+    s.add_argument("--plot", type=_figure_path,
+                   help="plot the variables to this PNG, SVG or PDF file")
     s.add_argument("--si", action="store_true", help="print SI units (default: bar, L/min, mm)")
     s.set_defaults(func=cmd_simulate)
 
@@ -802,7 +832,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_target(w, optional=True)
     w.add_argument("--var", action="append", help="output variable (repeatable)")
     w.add_argument("--t-end", type=float, default=None, help="simulated time per case [s]")
-    w.add_argument("--rtol", type=float, default=1e-5)
+    w.add_argument("--rtol", type=_tolerance, default=1e-5,
+                   help="relative tolerance (default: %(default)s)")
     w.add_argument("--steady", action="store_true",
                    help="record each case's steady operating point instead of simulating "
                         "to --t-end (each case starts from the last steady state found)")
@@ -826,7 +857,7 @@ def build_parser() -> argparse.ArgumentParser:
     lz.add_argument("--poles", type=int, default=6, help="dominant poles to print "
                                                          "(default: %(default)s)")
     lz.add_argument("--json", help="write operating point, poles and DC gains to this file")
-    lz.add_argument("--bode", metavar="PNG", help="draw the Bode plot of every output to this "
+    lz.add_argument("--bode", metavar="PNG", type=_figure_path, help="draw the Bode plot of every output to this "
                                                   "PNG file")
     lz.add_argument("--si", action="store_true", help="print SI units")
     lz.set_defaults(func=cmd_linearize)

@@ -75,8 +75,9 @@ class _Equation:
 
 
 #: What closes an unconnected port of each domain.
-_CLOSURE = {"hydraulic": "a Plug (no flow) or a Tank", "mechanical": "a Fixed (no motion)",
-            "rotational": "a RotationalFixed (no rotation)"}
+_CLOSURE = {"hydraulic": "a Plug (no flow) or a Tank",
+            "mechanical": "a Fixed (no motion) or a Free (no force)",
+            "rotational": "a RotationalFixed (no rotation) or a RotationalFree (no torque)"}
 
 def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True,
                     array_rows: bool | None = None):

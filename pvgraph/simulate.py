@@ -92,7 +92,14 @@ class Solution:
         return float(self[name][-1])
 
     def at(self, name: str, t: float) -> float:
-        """Value at time ``t`` (linear interpolation between output points)."""
+        """Value at time ``t`` (linear interpolation between output points); ``t`` outside
+        the run raises."""
+        t = float(t)
+        lo, hi = float(self.t[0]), float(self.t[-1])
+        slack = 1e-12 * max(1.0, abs(lo), abs(hi))
+        if not (lo - slack <= t <= hi + slack):
+            raise PvgraphError(f"{self.system.name}: t = {t:g} s is outside the run "
+                               f"[{lo:g}, {hi:g}] s")
         return float(np.interp(t, self.t, self[name]))
 
     def to_csv(self, path, names: Iterable[str] | None = None) -> None:
@@ -198,6 +205,7 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         coef, idx, off = system.resolve(name)
         if idx is None or coef == 0.0:
             raise PvgraphError(f"start value for {name!r}: it is fixed to {off!r} by the circuit")
+        value = _start_value(system, name, value)
         y_init[idx] = (value - off) / coef
     atol_vec = (rtol if atol is None else atol) * system.nominal
     system.reset_modes()
@@ -231,6 +239,27 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
                    mode_log=system.mode_log, solver=solver)
     _check_pressures(sol)
     return sol
+
+
+def _start_value(system, name, value) -> float:
+    """A start value in SI: a number, or a quantity in the variable's unit (``"50 bar"``)."""
+    from .units import UnitError, to_unit
+    if isinstance(value, bool):
+        raise PvgraphError(f"start value for {name!r}: {value!r} is not a number")
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        number = float(value)
+    else:
+        unit = system.unit(name) or "-"
+        try:
+            number = to_unit(value, unit, f"start value for {name!r}")
+        except UnitError as exc:
+            raise PvgraphError(str(exc)) from None
+        if not isinstance(number, (int, float)):
+            raise PvgraphError(f"start value for {name!r}: {value!r} is not a number or a "
+                               f"quantity ('50 bar')")
+    if not math.isfinite(number):
+        raise PvgraphError(f"start value for {name!r} is not finite: {value!r}")
+    return float(number)
 
 
 def _check_pressures(sol: Solution) -> None:

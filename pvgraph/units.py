@@ -128,6 +128,9 @@ _UNITS = {
     "rpm": (2.0 * math.pi / 60.0, _dim(s=-1), False), "rev": (2.0 * math.pi, _ONE, False),
     "%": (0.01, _ONE, False), "-": (1.0, _ONE, False), "1": (1.0, _ONE, False),
 }
+#: units that count an angle (a power of the radian, which is dimensionless in SI): the
+#: parser carries their angle exponent beside the dimension, see :func:`to_unit`
+_ANGLE = {"rad": 1, "deg": 1, "rev": 1, "rpm": 1}
 _PREFIXES = {"p": 1e-12, "n": 1e-9, "u": 1e-6, "µ": 1e-6, "μ": 1e-6, "m": 1e-3, "c": 1e-2,
              "d": 1e-1, "k": 1e3, "M": 1e6, "G": 1e9}
 #: names of the dimensions people meet, for messages
@@ -159,21 +162,32 @@ def kind(dim) -> str:
 
 def _symbol(name: str):
     if name in _UNITS:
-        return _UNITS[name][:2]
+        return _UNITS[name][:2] + (_ANGLE.get(name, 0),)
     for prefix, scale in _PREFIXES.items():
         rest = name[len(prefix):]
         if name.startswith(prefix) and rest in _UNITS and _UNITS[rest][2]:
             f, d = _UNITS[rest][:2]
-            return scale * f, d
+            return scale * f, d, _ANGLE.get(rest, 0)
     raise UnitError(f"unknown unit {name!r}")
 
 
-@functools.lru_cache(maxsize=512)
 def parse_unit(text: str) -> tuple[float, tuple]:
     """``(factor to SI, dimension)`` of a unit string: ``parse_unit("L/min") == (1/60000, ...)``."""
+    return _parse(text)[:2]
+
+
+def angle_power(text: str) -> int:
+    """The power of the angle in a unit: 1 in ``"rad/s"`` and ``"rpm"``, -1 in ``"cm^3/rev"``,
+    0 in ``"Hz"`` and ``"1/min"`` (SI counts the radian as dimensionless; this does not)."""
+    return _parse(text)[2]
+
+
+@functools.lru_cache(maxsize=512)
+def _parse(text: str) -> tuple[float, tuple, int]:
+    """``(factor to SI, dimension, angle power)`` of a unit string."""
     src = str(text).strip()
     if src in ("", "-", "1"):
-        return 1.0, _ONE
+        return 1.0, _ONE, 0
     tokens, pos = [], 0
     while pos < len(src):
         m = _TOKEN.match(src, pos)
@@ -190,7 +204,7 @@ def parse_unit(text: str) -> tuple[float, tuple]:
         k[0] += 1
         return tokens[k[0] - 1]
 
-    def power(f, d):
+    def power(f, d, a):
         if peek() in ("^", "**"):
             take()
             exp = take() if peek() is not None else ""
@@ -198,8 +212,8 @@ def parse_unit(text: str) -> tuple[float, tuple]:
                 e = int(exp)
             except ValueError:
                 raise UnitError(f"unit {text!r}: the exponent {exp!r} is not an integer") from None
-            return f**e, tuple(x * e for x in d)
-        return f, d
+            return f**e, tuple(x * e for x in d), a * e
+        return f, d, a
 
     def factor():
         tok = peek()
@@ -207,44 +221,44 @@ def parse_unit(text: str) -> tuple[float, tuple]:
             raise UnitError(f"unit {text!r} ends where a unit was expected")
         take()
         if tok == "(":
-            f, d = product()
+            f, d, a = product()
             if peek() != ")":
                 raise UnitError(f"unit {text!r}: missing ')'")
             take()
         elif tok[0].isalpha() or tok[0] in "µμΩ%_":
             m2 = re.fullmatch(r"([A-Za-zµμΩ%_]+)(\d+)", tok)
             if m2 and tok not in _UNITS:            # "mm2", "cm3": a power without "^"
-                f, d = _symbol(m2.group(1))
+                f, d, a = _symbol(m2.group(1))
                 e = int(m2.group(2))
-                f, d = f**e, tuple(x * e for x in d)
+                f, d, a = f**e, tuple(x * e for x in d), a * e
             else:
-                f, d = _symbol(tok)
+                f, d, a = _symbol(tok)
         elif tok.lstrip("+-").isdigit():
-            f, d = float(tok), _ONE
+            f, d, a = float(tok), _ONE, 0
         else:
             raise UnitError(f"unit {text!r}: unexpected {tok!r}")
-        return power(f, d)
+        return power(f, d, a)
 
     def product():
-        f, d = factor()
+        f, d, a = factor()
         while peek() is not None and peek() != ")":
             op = peek()
             if op in ("*", "·", "."):
                 take()
-                g, e = factor()
+                g, e, b = factor()
             elif op == "/":
                 take()
-                g, e = factor()
-                g, e = 1.0 / g, tuple(-x for x in e)
+                g, e, b = factor()
+                g, e, b = 1.0 / g, tuple(-x for x in e), -b
             else:
-                g, e = factor()
-            f, d = f * g, tuple(a + b for a, b in zip(d, e))
-        return f, d
+                g, e, b = factor()
+            f, d, a = f * g, tuple(x + y for x, y in zip(d, e)), a + b
+        return f, d, a
 
-    f, d = product()
+    f, d, a = product()
     if k[0] != len(tokens):
         raise UnitError(f"unit {text!r}: unexpected {tokens[k[0]]!r}")
-    return _snap(f), d
+    return _snap(f), d, a
 
 
 def _snap(f: float) -> float:
@@ -253,8 +267,8 @@ def _snap(f: float) -> float:
     return short if abs(short - f) <= 4 * math.ulp(f) else f
 
 
-def _pint_si(q) -> tuple[float, tuple]:
-    """(magnitude in SI base units, dimension) of a pint Quantity."""
+def _pint_si(q) -> tuple[float, tuple, int]:
+    """(magnitude in SI base units, dimension, angle power) of a pint Quantity."""
     base = q.to_base_units()
     dims = dict(q.dimensionality)
     order = ("[length]", "[mass]", "[time]", "[current]", "[temperature]")
@@ -262,7 +276,8 @@ def _pint_si(q) -> tuple[float, tuple]:
     if unknown:
         raise UnitError(f"quantity {q!r} has dimensions pvgraph does not use: {unknown}")
     d = tuple(int(dims.get(k, 0)) for k in order)
-    return base.magnitude, d
+    units = getattr(base, "_units", None) or {}
+    return base.magnitude, d, int(dict(units).get("radian", 0))
 
 
 def is_quantity(value) -> bool:
@@ -280,9 +295,9 @@ def to_unit(value, unit: str, what: str = "value") -> float:
     A plain number is taken to be in ``unit`` already. A quantity of another dimension raises
     :class:`UnitError` naming ``what``, both units and both dimensions.
     """
-    factor, dim = parse_unit(unit)
+    factor, dim, angle = _parse(unit)
     if _is_pint(value):
-        si, got = _pint_si(value)
+        si, got, got_angle = _pint_si(value)
         shown = f"{value:~P}" if hasattr(value, "__format__") else str(value)
     elif isinstance(value, str):
         m = _NUMBER.match(value)
@@ -293,7 +308,7 @@ def to_unit(value, unit: str, what: str = "value") -> float:
         if not text:
             return number
         try:
-            f, got = parse_unit(text)
+            f, got, got_angle = _parse(text)
         except UnitError as exc:
             raise UnitError(f"{what} = {value!r}: {exc}") from None
         si, shown = number * f, value
@@ -302,7 +317,31 @@ def to_unit(value, unit: str, what: str = "value") -> float:
     if got != dim:
         raise UnitError(f"{what} = {shown!r} is {kind(got)}, but {what} is {kind(dim)} "
                         f"[{unit}]")
+    if got_angle != angle:
+        si = _angle_reading(si, got, got_angle, angle, what, shown, unit)
     return si / factor
+
+
+def _angle_reading(si, dim, got_angle, angle, what, shown, unit):
+    """``si`` of a quantity whose angle power differs from the declared unit's.
+
+    SI counts the radian as 1, so "1500 1/min" and "25 rad/s" have one dimension, but a
+    rotational frequency n and an angular velocity w = 2 pi n are not the same number
+    (ISO 80000-3). A frequency (Hz, 1/min, 1/s) for an angular speed is read as revolutions
+    per time, an angular speed (rad/s, rpm) for a frequency [Hz] as cycles per time. Any other
+    mismatch is refused: "28 cm^3" for a displacement [m^3/rad] does not say per what.
+    """
+    if dim == _dim(s=-1) and {got_angle, angle} == {0, 1}:
+        return si * 2.0 * math.pi if angle == 1 else si / (2.0 * math.pi)
+    if got_angle and not angle:
+        raise UnitError(f"{what} = {shown!r} counts an angle, but {what} [{unit}] does not")
+    if angle and not got_angle:
+        where = "per angle" if angle < 0 else "an angle"
+        example = "'... /rev' or '... /rad'" if angle < 0 else "'... deg' or '... rad'"
+        raise UnitError(f"{what} = {shown!r} gives no angle, but {what} is {where} [{unit}]; "
+                        f"per radian and per revolution differ by 2 pi: write it, e.g. "
+                        f"{example}")
+    raise UnitError(f"{what} = {shown!r}: its angle does not match {what}'s [{unit}]")
 
 
 def declared_unit(description: str | None) -> str | None:

@@ -320,6 +320,35 @@ def test_misspelled_var_fails_before_simulating(rig_file, tmp_path, capsys):
     assert "steps" not in err and not csv.exists()
 
 
+@pytest.mark.parametrize("args, message", [
+    (["--rtol", "0"], "argument --rtol: '0': a relative tolerance is a number between 0 and 1"),
+    (["--rtol", "nan"], "argument --rtol: 'nan': a relative tolerance"),
+    (["--rtol", "abc"], "argument --rtol: 'abc' is not a number"),
+    (["--plot", "{dir}/out.xyz"], "the figure format comes from the extension; use one of .png"),
+])
+def test_bad_options_exit_2_before_anything_runs(args, message, rig_file, tmp_path, capsys):
+    csv = tmp_path / "never.csv"
+    with pytest.raises(SystemExit) as exc:       # argparse's own exit, before the target loads
+        main(["simulate", f"{rig_file}:build", "--csv", str(csv)]
+             + [a.format(dir=tmp_path) for a in args])
+    assert exc.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not csv.exists()
+    if args[0] == "--rtol":     # a sweep refuses it too, before any case runs
+        with pytest.raises(SystemExit) as exc:
+            main(["sweep", f"{rig_file}:build", "--param", "orifice.A=1e-6,2e-6",
+                  "--out", str(tmp_path / "sweep")] + args)
+        assert exc.value.code == 2 and not (tmp_path / "sweep").exists()
+
+
+def test_linearize_names_the_option_of_a_misspelled_input(rig_file, capsys):
+    assert main(["linearize", f"{rig_file}:build", "--input", "pump.QQ", "--output",
+                 "node.port.p"]) == 2
+    err = capsys.readouterr().err
+    assert "--input: unknown parameter 'pump.QQ'; did you mean 'pump.Q'?" in err
+    assert "PVG32" not in err
+
+
 def test_vars_lists_names_units_and_exposed_ports(rig_file, capsys):
     assert main(["vars", f"{rig_file}:nested"]) == 0
     out = capsys.readouterr().out

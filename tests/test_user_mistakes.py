@@ -364,3 +364,39 @@ def test_unconnected_shaft_and_a_parameter_read_as_a_port_are_named():
     with pytest.raises(AttributeError, match=r"no port 'D'.*'D' is a parameter: read it as "
                                              r"\.params\.D"):
         motor.D
+
+
+def test_a_free_mass_is_closed_by_a_free_end_and_falls():
+    # the unconnected flange names both closures; with Free (no force) the mass falls freely
+    import numpy as np
+    from pvgraph.components import Free, Mass
+    c = Circuit("drop")
+    c.add("m", Mass(m=2.0, g=-9.81, x0=1.0))
+    with pytest.raises(CircuitError, match=r"'m.flange' \(mechanical\) is not connected.*"
+                                           r"a Fixed \(no motion\) or a Free \(no force\)"):
+        c.compile()
+    free = c.add("free", Free())
+    c.connect(c["m"].flange, free.flange)
+    t = np.linspace(0.0, 0.4, 9)
+    sol = simulate(c, 0.4, t_eval=t, rtol=1e-8)
+    assert np.allclose(sol["m.flange.x"], 1.0 - 0.5 * 9.81 * t ** 2, rtol=0, atol=1e-7)
+    assert np.allclose(sol["m.v"], -9.81 * t, rtol=0, atol=1e-6)
+
+
+def test_a_free_shaft_end_takes_no_torque():
+    import numpy as np
+    from pvgraph.components import Inertia, RotationalFree, TorqueSource
+    c = Circuit("spin")
+    inertia = c.add("J", Inertia(J=0.5))
+    drive = c.add("drive", TorqueSource(T=2.0))
+    free = c.add("free", RotationalFree())
+    c.connect(drive.shaft, inertia.shaft, free.shaft)
+    sol = simulate(c, 1.0, t_eval=np.array([0.0, 1.0]), rtol=1e-8)
+    assert sol["J.w"][-1] == pytest.approx(2.0 / 0.5, rel=1e-7)      # w = T t / J
+
+
+def test_a_port_connected_to_itself_is_named():
+    c = Circuit("e")
+    tank = c.add("t", Tank())
+    with pytest.raises(CircuitError, match=r"connect\(\) joins port 't.port' to itself"):
+        c.connect(tank.port, tank.port)

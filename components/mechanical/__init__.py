@@ -8,17 +8,18 @@ component in +x (positive into the component). Two-flange components use ``a`` a
 from .end_stop import EndStop
 from .friction import Damper, Friction, TwoFlangeDamper
 from .inputs import ForceInput, PositionInput
-from .mass import LEVER_EQUIVALENT_MASS, MAIN_SPOOL_MASS, Fixed, Mass, SpoolMass
-from .rotational import (AngleSensor, Inertia, RotationalDamper, RotationalFixed, ShaftSpringDamper,
+from .mass import LEVER_EQUIVALENT_MASS, MAIN_SPOOL_MASS, Fixed, Free, Mass, SpoolMass
+from .rotational import (AngleSensor, Inertia, RotationalDamper, RotationalFixed,
+                         RotationalFree, ShaftSpringDamper,
                          SpeedInput, SpeedSensor, SpeedSource, TorqueInput, TorqueSensor,
                          TorqueSource)
 from .sensors import ForceSensor, PositionSensor, VelocitySensor
 from .transmissions import Lever, RackPinion
 from .springs import CenteringSpring, LinearSpring, TwoFlangeSpring, TwoStageSpring
 
-__all__ = ["SpoolMass", "Mass", "Fixed", "LinearSpring", "TwoFlangeSpring", "TwoStageSpring",
+__all__ = ["SpoolMass", "Mass", "Fixed", "Free", "LinearSpring", "TwoFlangeSpring", "TwoStageSpring",
            "CenteringSpring", "Friction", "Damper", "TwoFlangeDamper", "EndStop", "ForceInput",
            "PositionInput", "PositionSensor", "VelocitySensor", "ForceSensor", "RackPinion", "Lever",
            "Inertia", "ShaftSpringDamper", "RotationalDamper", "TorqueSource", "TorqueInput",
-           "SpeedSource", "SpeedInput", "RotationalFixed", "SpeedSensor", "AngleSensor",
+           "SpeedSource", "SpeedInput", "RotationalFixed", "RotationalFree", "SpeedSensor", "AngleSensor",
            "TorqueSensor", "MAIN_SPOOL_MASS", "LEVER_EQUIVALENT_MASS"]

@@ -79,6 +79,17 @@ class Fixed(Component):
         return [v.flange.x - p.x0]
 
 
+class Free(Component):
+    """Mechanical free end: no force on the flange, ``flange.f = 0`` (what an unconnected
+    flange is in Modelica or Simscape; pvgraph asks for it by name). A falling mass, a
+    cylinder rod without load."""
+
+    ports = {"flange": Mechanical("the free end")}
+
+    def equations(self, v, p):
+        return [v.flange.f]
+
+
 class MassParams(Params):
     m: float = Field(..., gt=0.0, le=1e6, description="Mass [kg]")
     g: float = Field(0.0, ge=-100.0, le=100.0,

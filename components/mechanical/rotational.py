@@ -13,7 +13,7 @@ delivers is ``-shaft.tau * w`` with ``w = der(phi)``.
   from a signal.
 - ``SpeedSource``: turns the node at ``w0`` [rad/s], ``der(phi) = w0`` (with ``phi(0) = 0``);
   ``SpeedInput`` takes the speed from a signal (an ideal motor; it supplies any torque).
-- ``RotationalFixed``: ``phi = phi0``.
+- ``RotationalFixed``: ``phi = phi0``; ``RotationalFree``: ``tau = 0`` (a free shaft end).
 - ``SpeedSensor``, ``AngleSensor``: signal ``y`` = ``w`` or ``phi``; they take no torque.
   ``TorqueSensor`` sits between ``a`` and ``b`` (same angle) and outputs the torque passed from
   a to b.
@@ -28,7 +28,7 @@ from pvgraph.component import (Component, Domain, Params, Port, SignalIn, Signal
 
 __all__ = ["ROTATIONAL", "Rotational", "Inertia", "ShaftSpringDamper", "RotationalDamper",
            "TorqueSource", "TorqueInput", "SpeedSource", "SpeedInput", "RotationalFixed",
-           "SpeedSensor", "AngleSensor", "TorqueSensor"]
+           "RotationalFree", "SpeedSensor", "AngleSensor", "TorqueSensor"]
 
 ROTATIONAL = Domain("rotational", "phi", "rad", 1.0, "tau", "N m", 10.0)
 
@@ -152,6 +152,16 @@ class RotationalFixed(Component):
 
     def equations(self, v, p):
         return [v.shaft.phi - p.phi0]
+
+
+class RotationalFree(Component):
+    """Rotational free end: no torque on the shaft, ``shaft.tau = 0`` (a shaft end left
+    free, as an unconnected flange in Modelica or Simscape)."""
+
+    ports = {"shaft": Rotational("the free end")}
+
+    def equations(self, v, p):
+        return [v.shaft.tau]
 
 
 class SpeedSensor(Component):

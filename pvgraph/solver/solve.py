@@ -187,7 +187,11 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
     rtol = float(rtol)
     if not rtol > 0.0:
         raise ValueError(f"rtol must be positive, got {rtol}")
-    atol = np.broadcast_to(np.asarray(atol, dtype=float), (n,)).copy()
+    atol = np.asarray(atol, dtype=float)
+    if atol.ndim > 1 or atol.size not in (1, n):
+        raise ValueError(f"atol must be a number or have one entry per variable ({n}), got "
+                         f"shape {atol.shape}")
+    atol = np.broadcast_to(atol.ravel() if atol.ndim else atol, (n,)).copy()
     if not np.all(atol > 0.0):
         raise ValueError("atol must be positive for every variable")
     if var_names is not None:

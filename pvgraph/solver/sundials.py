@@ -139,7 +139,11 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
     if not (np.all(np.isfinite(y)) and np.all(np.isfinite(yp))):
         raise InitializationError("y0 and yp0 must be finite")
     rtol = float(rtol)
-    atol_arr = np.broadcast_to(np.asarray(atol, dtype=float), (n,)).copy()
+    atol_arr = np.asarray(atol, dtype=float)
+    if atol_arr.ndim > 1 or atol_arr.size not in (1, n):
+        raise ValueError(f"atol must be a number or have one entry per variable ({n}), got "
+                         f"shape {atol_arr.shape}")
+    atol_arr = np.broadcast_to(atol_arr.ravel() if atol_arr.ndim else atol_arr, (n,)).copy()
     if not (rtol > 0.0 and np.all(atol_arr > 0.0)):
         raise ValueError("rtol and atol must be positive")
     if calc_initial not in ("algebraic", "all", None):

@@ -234,3 +234,36 @@ def test_a_sine_pressure_source_on_an_orifice_is_followed_at_the_output_times():
     assert np.allclose(sol["orifice.q"], q, rtol=1e-4, atol=0)
     # the default output (every step) samples the 2 Hz sine densely
     assert np.max(np.diff(simulate(c, 1.0).t)) < 0.05
+
+
+def _charged_volume():
+    c = Circuit("charge")
+    pump = c.add("pump", FlowSource(Q="10 L/min"))
+    c.add("node", VolumeNode(V="0.5 L"))
+    orifice = c.add("orifice", Orifice(A="2 mm^2"))
+    tank = c.add("tank", Tank())
+    c.connect(pump.port, c["node"].port, orifice.a)
+    c.connect(orifice.b, tank.port)
+    return c
+
+
+def test_start_values_take_quantities_in_the_variables_unit():
+    system = _charged_volume().compile()
+    sol = simulate(system, 1e-4, start={"node.port.p": "50 bar"}, t_eval=[0.0, 1e-4])
+    assert sol["node.port.p"][0] == pytest.approx(50e5, rel=1e-12)
+    same = simulate(system, 1e-4, start={"node.port.p": 50e5}, t_eval=[0.0, 1e-4])
+    assert same["node.port.p"][-1] == sol["node.port.p"][-1]
+    with pytest.raises(PvgraphError, match=r"start value for 'node.port.p' = '50 L/min' is a "
+                                           r"volume flow, but .* is a pressure"):
+        simulate(system, 1e-4, start={"node.port.p": "50 L/min"})
+    with pytest.raises(PvgraphError, match=r"start value for 'node.port.p' is not finite"):
+        simulate(system, 1e-4, start={"node.port.p": float("nan")})
+
+
+def test_a_solution_is_read_only_inside_its_run():
+    sol = simulate(_charged_volume(), 0.1)
+    assert sol.at("node.port.p", 0.1) == sol.final("node.port.p")
+    assert sol.at("node.port.p", 0.05) == pytest.approx(
+        np.interp(0.05, sol.t, sol["node.port.p"]), rel=1e-15)
+    with pytest.raises(PvgraphError, match=r"t = 5 s is outside the run \[0, 0.1\] s"):
+        sol.at("node.port.p", 5.0)

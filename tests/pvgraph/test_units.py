@@ -93,3 +93,51 @@ def test_declared_units_and_display():
     assert format_value(7e-3, "m") == "7 mm"
     assert format_value(1.0, "N") == "1 N"
     assert math.isclose(display(2e-3, "m^3")[0], 2.0)
+
+
+@pytest.mark.parametrize("given, unit, expected", [
+    ("1500 min^-1", "rad/s", 1500 * 2 * math.pi / 60),    # a datasheet's rotational speed n
+    ("1500 1/min", "rad/s", 1500 * 2 * math.pi / 60),
+    ("25 Hz", "rad/s", 50 * math.pi),
+    ("1500 rpm", "rad/s", 50 * math.pi),
+    ("10 deg/s", "rad/s", math.pi / 18),
+    ("31.41592653589793 rad/s", "Hz", 5.0),               # w = 2 pi f
+    ("300 rpm", "Hz", 5.0),
+    ("2 rev/s", "Hz", 2.0),
+    ("28 cm^3/rev", "m^3/rad", 28e-6 / (2 * math.pi)),
+    ("100 N m/deg", "N m/rad", 100 * 180 / math.pi),
+    ("0.25 rev", "rad", math.pi / 2),
+])
+def test_angles_are_counted_so_nothing_is_two_pi_off(given, unit, expected):
+    assert to_unit(given, unit) == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("given, unit, match", [
+    ("28 cm^3", "m^3/rad", r"gives no angle, but D is per angle \[m\^3/rad\].*'... /rev'"),
+    ("100 N m", "N m/rad", r"gives no angle, but D is per angle"),
+    ("0.5", "rad", None),
+    ("1 rad", "-", r"counts an angle, but D \[-\] does not"),
+])
+def test_a_missing_or_extra_angle_is_refused_by_name(given, unit, match):
+    if match is None:
+        assert to_unit(given, unit, "D") == 0.5         # a plain number is SI, as always
+        return
+    with pytest.raises(UnitError, match=match):
+        to_unit(given, unit, "D")
+
+
+def test_pint_quantities_count_their_angles_too():
+    pint = pytest.importorskip("pint")
+    ureg = pint.UnitRegistry()
+    assert to_unit(25 * ureg.Hz, "rad/s") == pytest.approx(50 * math.pi, rel=1e-12)
+    assert to_unit(300 * ureg.rpm, "Hz") == pytest.approx(5.0, rel=1e-12)
+    assert to_unit(28 * ureg("cm**3/turn"), "m^3/rad") == pytest.approx(28e-6 / (2 * math.pi),
+                                                                         rel=1e-12)
+
+
+def test_components_read_speeds_and_frequencies_as_a_designer_means_them():
+    from pvgraph.components import FixedDisplacementPump, Sine, SpeedSource
+    assert SpeedSource(w0="1500 min^-1").params.w0 == pytest.approx(50 * math.pi, rel=1e-12)
+    assert Sine(amplitude=1.0, f="300 rpm").params.f == pytest.approx(5.0, rel=1e-12)
+    with pytest.raises(ParameterError, match=r"D = '28 cm\^3' gives no angle"):
+        FixedDisplacementPump(D="28 cm^3")

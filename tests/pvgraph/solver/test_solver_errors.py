@@ -58,3 +58,13 @@ def test_bad_arguments():
         solve_dae(fun, (0.0, 1.0), [1.0], [-1.0], atol=0.0)
     with pytest.raises(ValueError):
         solve_dae(fun, (0.0, 1.0), [1.0], [-1.0], calc_initial="yp")
+
+
+def test_an_atol_of_the_wrong_length_is_named():
+    with pytest.raises(ValueError, match=r"atol must be a number or have one entry per variable "
+                                         r"\(1\), got shape \(2,\)"):
+        solve_dae(lambda t, y, yp: np.array([yp[0] + y[0]]), (0.0, 1.0), [1.0], [-1.0],
+                  atol=[1e-8, 1e-8])
+    sol = solve_dae(lambda t, y, yp: np.array([yp[0] + y[0]]), (0.0, 1.0), [1.0], [-1.0],
+                    atol=[1e-10], rtol=1e-8)
+    assert sol.y[-1, 0] == pytest.approx(np.exp(-1.0), rel=1e-6)
