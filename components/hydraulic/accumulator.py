@@ -2,24 +2,25 @@
 
 Port ``port`` (oil). The gas of volume ``V0`` is precharged to ``p_pre`` (gauge) with the oil
 side empty, and compressed polytropically with exponent ``n`` (1: isothermal, slow cycles; 1.4:
-adiabatic nitrogen, fast cycles). Above the precharge the oil volume is::
+adiabatic nitrogen, fast cycles). Above the precharge the oil volume against the gas is::
 
     V_oil(p) = V0 * (1 - ((p_pre + p_atm) / (p + p_atm))^(1/n))
 
-The accumulator is a nonlinear compliance on its port, ``C(p) der(port.p) = port.q`` (positive
-into it), with::
-
-    C(p) = V_dead / beta + dV_oil/dp * ramp(p; p_pre, dp_b)
-    dV_oil/dp = V0 / n * (p_pre + p_atm)^(1/n) * (p + p_atm)^(-1/n - 1)
-
 Below the precharge the bladder is bottomed on the poppet: only the oil in ``V_dead`` is left,
-so the port pressure follows ``beta / V_dead`` per volume drawn. ``ramp`` is the C1 smoothstep
-from 0 at ``p_pre`` to 1 at ``p_pre + dp_b`` (``dp_b = 1e-3 (p_pre + p_atm)``). The oil volume
-is also integrated, ``der(V_oil) = port.q``, for the gas state.
+so the port pressure follows ``beta / V_dead`` per volume drawn. The oil stored is one
+function of the port pressure, and its rate is the port flow (positive into it)::
 
-Observed: ``p_gas``, ``V_gas`` and the energy stored in the gas relative to the precharge
-state, ``E_gas = (p_gas_abs V_gas - p_pre_abs V0) / (n - 1)`` (``p_abs V ln(V0 / V_gas)`` for
-``n = 1``).
+    V_stored(p) = V_oil(p_g) + V_dead / beta * (p - p_pre),    der(V_stored) = port.q
+
+with the gas pressure ``p_g = p`` above ``p_pre + dp_b`` and ``p_g = p_pre`` below ``p_pre``,
+joined C2 in between (``p_g = p_pre + dp_b F(u)``, ``u = (p - p_pre) / dp_b``,
+``F = 6u^3 - 8u^4 + 3u^5``: F(0) = F'(0) = 0, F(1) = F'(1) = 1, F'(u) > 0), ``dp_b = 1e-3
+(p_pre + p_atm)``. One state, so the gas volume and the port pressure cannot drift apart:
+above ``p_pre + dp_b`` the port pressure is the gas pressure exactly.
+
+Observed: ``p_gas``, ``V_oil``, ``V_gas``, ``V_stored`` and the energy stored in the gas
+relative to the precharge state, ``E_gas = (p_gas_abs V_gas - p_pre_abs V0) / (n - 1)``
+(``p_abs V ln(V0 / V_gas)`` for ``n = 1``).
 """
 
 from __future__ import annotations
@@ -27,11 +28,8 @@ from __future__ import annotations
 from pydantic import Field, model_validator
 
 from pvgraph import expr as E
-from pvgraph.component import Component, Hydraulic, Params, Variable, der
+from pvgraph.component import Component, Hydraulic, Params, der
 
-from pvgraph.laws import smooth_max
-
-from .check_valve import smoothstep_ramp
 from .fluid import BETA, P_ATM
 
 __all__ = ["GasAccumulator"]
@@ -71,32 +69,36 @@ class GasAccumulatorParams(Params):
 
 
 class GasAccumulator(Component):
-    """Gas-charged accumulator: polytropic gas, precharge, bottoming (``der(V_oil) = port.q``).
+    """Gas-charged accumulator: polytropic gas, precharge, bottoming (``der(V_stored) = port.q``).
 
     Above the precharge ``(p + p_atm) (V0 - V_oil)^n = (p_pre + p_atm) V0^n`` (gauge ``p``;
-    ``n = 1`` isothermal, 1.4 adiabatic); the observed ``p_gas`` follows it exactly and the port
-    pressure to within ``dp_b = 1e-3 (p_pre + p_atm)``, the band over which bottoming is smoothed.
+    ``n = 1`` isothermal, 1.4 adiabatic), exactly for the observed ``p_gas`` and, above
+    ``p_pre + dp_b``, for the port pressure (``dp_b = 1e-3 (p_pre + p_atm)``, the band over which
+    bottoming is smoothed).
     """
 
     Params = GasAccumulatorParams
     ports = {"port": Hydraulic("oil connection")}
-    variables = {"V_oil": Variable("m^3", lambda p: p.oil_volume(p.start_pressure), 1e-4,
-                                   "oil volume in the accumulator")}
 
     def starts(self, p):
         return {"port.p": p.start_pressure}
 
     def equations(self, v, p):
         p_pre_abs = p.p_pre + p.p_atm
-        p_abs = smooth_max(v.port.p + p.p_atm, 0.5 * p_pre_abs, 1e-4 * p_pre_abs)
-        dV_dp = p.V0 / p.n * p_pre_abs ** (1.0 / p.n) * p_abs ** (-1.0 / p.n - 1.0)
-        C = p.V_dead / p.beta + dV_dp * smoothstep_ramp(v.port.p, p.p_pre, 1e-3 * p_pre_abs)
-        V_gas = v.observe("V_gas", p.V0 - v.V_oil, "m^3", "gas volume")
-        p_gas_abs = p_pre_abs * (p.V0 / V_gas) ** p.n
-        p_gas = v.observe("p_gas", p_gas_abs - p.p_atm, "Pa", "gas pressure (gauge)")
+        band = 1e-3 * p_pre_abs
+        u = E.clip((v.port.p - p.p_pre) / band, 0.0, 1.0)
+        p_g = E.where(v.port.p - p.p_pre >= band, v.port.p,
+                      p.p_pre + band * (u * u * u * (6.0 + u * (-8.0 + 3.0 * u))))
+        p_gas_abs = p_g + p.p_atm
+        V_oil = v.observe("V_oil", p.V0 * (1.0 - (p_pre_abs / p_gas_abs) ** (1.0 / p.n)), "m^3",
+                          "oil volume against the gas")
+        V_stored = v.observe("V_stored", V_oil + p.V_dead / p.beta * (v.port.p - p.p_pre),
+                             "m^3", "oil stored: against the gas and compressed in V_dead")
+        V_gas = v.observe("V_gas", p.V0 - V_oil, "m^3", "gas volume")
+        v.observe("p_gas", p_g, "Pa", "gas pressure (gauge)")
         if p.n == 1.0:
             energy = p_pre_abs * p.V0 * E.log(p.V0 / V_gas)
         else:
             energy = (p_gas_abs * V_gas - p_pre_abs * p.V0) / (p.n - 1.0)
         v.observe("E_gas", energy, "J", "energy stored in the gas since precharge")
-        return [der(v.V_oil) - v.port.q, C * der(v.port.p) - v.port.q]
+        return [der(V_stored) - v.port.q]

@@ -21,7 +21,6 @@ from pvgraph.components.hydraulic import (CheckValve, CounterbalanceValve, Direc
 from pvgraph.components.mechanical import Inertia, RotationalDamper
 from pvgraph.components.signal import Constant
 from pvgraph.circuit import Circuit
-from pvgraph.errors import SolverError
 from pvgraph.simulate import simulate
 from pvgraph.units import bar, cm3, lpm, mm2
 
@@ -111,7 +110,7 @@ def stored_volume(sol, circuit):
                 p = sol[f"{name}.{end}.p"]
                 total += half / BETA * (p - p[0])
         elif isinstance(comp, GasAccumulator):
-            total += sol[f"{name}.V_oil"] - sol[f"{name}.V_oil"][0]
+            total += sol[f"{name}.V_stored"] - sol[f"{name}.V_stored"][0]
     return total
 
 
@@ -143,13 +142,12 @@ def test_random_closed_network_stores_exactly_what_is_fed(spec):
     _stores_what_is_fed(spec)
 
 
-def test_two_motor_network_converges_where_the_newton_rate_test_misreads():
+def test_two_motor_network_converges_with_either_newton_rule():
     """At rtol 1e-9 the motors' torque law tanh(w / w_eps) changes its slope by 18 % between
-    the predictor and the solution after the check valve closes: a fresh Jacobian at the
-    predictor overshoots the shaft torques by 3e-5 N m and the next correction, the same
-    size, lands on the solution (residual 4e-16). Refreshing J at the iterate lets the step
-    converge; without it the rate test reads divergence at every step size down to 1e-12 s."""
+    the predictor and the solution after the check valve closes (near t = 1.1 ms). The run
+    stores exactly what is fed, in few steps, with the Jacobian refreshed at the iterate after
+    a failed iteration (simulate's default) and with IDA's rule alike."""
     sol = _stores_what_is_fed(TWO_MOTORS)
     assert sol.stats["nsteps"] < 2000
-    with pytest.raises(SolverError, match="corrector failures"):
-        _stores_what_is_fed(TWO_MOTORS, newton_iterate_retry=False)     # IDA's rule
+    ida_rule = _stores_what_is_fed(TWO_MOTORS, newton_iterate_retry=False)
+    assert ida_rule.stats["nsteps"] < 2000
