@@ -11,7 +11,7 @@ from .circuit import Circuit
 from .component import (Component, Hydraulic, Mechanical, Params, SignalIn, SignalOut, Variable,
                         der)
 from .errors import (CircuitError, ConnectionError_, InitializationError, ParameterError,
-                     PvgraphError, SolverError, StructureError)
+                     PortConnectionError, PvgraphError, SolverError, StructureError)
 
 __version__ = "0.1.0"
 
@@ -19,6 +19,6 @@ _layout.install(_Path(__file__).resolve().parent)
 
 __all__ = [
     "Circuit", "Component", "Hydraulic", "Mechanical", "Params", "SignalIn", "SignalOut",
-    "Variable", "der", "PvgraphError", "CircuitError", "ConnectionError_", "ParameterError",
-    "StructureError", "InitializationError", "SolverError",
+    "Variable", "der", "PvgraphError", "CircuitError", "PortConnectionError", "ConnectionError_",
+    "ParameterError", "StructureError", "InitializationError", "SolverError",
 ]

@@ -26,8 +26,12 @@ class CircuitError(PvgraphError):
     """A circuit is assembled wrongly: unknown or duplicate names, unconnected ports."""
 
 
-class ConnectionError_(CircuitError):
+class PortConnectionError(CircuitError):
     """Ports that cannot be joined: incompatible domains, two outputs driving one input."""
+
+
+#: the former name (Python's own ConnectionError is about sockets)
+ConnectionError_ = PortConnectionError
 
 
 class ParameterError(PvgraphError):

@@ -124,6 +124,9 @@ _UNITS = {
     "min": (60.0, _dim(s=1), False), "h": (3600.0, _dim(s=1), False),
     "lpm": (LPM, _dim(m=3, s=-1), False), "gpm": (3.785411784e-3 / 60.0, _dim(m=3, s=-1), False),
     "cc": (1e-6, _dim(m=3), False), "in": (0.0254, _dim(m=1), False),
+    "t": (1e3, _dim(kg=1), False),                           # tonne
+    "St": (1e-4, _dim(m=2, s=-1), True),                     # stokes: "32 cSt"
+    "P": (0.1, _dim(m=-1, kg=1, s=-1), True),                # poise: "30 cP"
     "rad": (1.0, _ONE, False), "deg": (math.pi / 180.0, _ONE, False),
     "rpm": (2.0 * math.pi / 60.0, _dim(s=-1), False), "rev": (2.0 * math.pi, _ONE, False),
     "%": (0.01, _ONE, False), "-": (1.0, _ONE, False), "1": (1.0, _ONE, False),

@@ -160,7 +160,10 @@ class DirectionalValve43Params(SpoolEdgeParams):
 
 
 class DirectionalValve43(Component):
-    """4/3 directional spool valve, driven by the spool position signal ``u`` in [-1, 1]."""
+    """4/3 directional spool valve, driven by the spool position signal ``u`` in [-1, 1].
+
+    ``u > 0`` opens P -> A and B -> T, ``u < 0`` P -> B and A -> T; ``u = 0`` is the centre
+    (``centre``: closed, open, tandem or float)."""
 
     Params = DirectionalValve43Params
     ports = {**FOUR_PORTS, "u": SignalIn("spool position, fraction of the stroke", "", 1.0)}

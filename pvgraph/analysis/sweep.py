@@ -859,12 +859,17 @@ def _read_log(path, cases) -> dict[int, CaseResult]:
     except (IndexError, ValueError):
         raise SweepError(f"{path} is not a sweep record (no header line); remove it or use "
                          f"another output folder") from None
-    same = [{k: _json_value(v) for k, v in c.items()} for c in cases]
-    if head.get("n_cases") != len(cases) or \
-            json.loads(json.dumps(same, default=str)) != head.get("cases"):
+    same = json.loads(json.dumps([{k: _json_value(v) for k, v in c.items()} for c in cases],
+                                 default=str))
+    if head.get("n_cases") != len(cases) or same != head.get("cases"):
+        recorded = head.get("cases") or []
+        first = next((k for k, (a, b) in enumerate(zip(recorded, same)) if a != b), None)
+        detail = (f"; case {first} was {recorded[first]}, now {same[first]}"
+                  if first is not None else "")
         raise SweepError(f"--resume: {path} records another sweep ({head.get('n_cases')} cases "
                          f"of {head.get('param_names')}); these are {len(cases)} cases of "
-                         f"{list(cases[0])}. Use the same arguments, or a new output folder")
+                         f"{list(cases[0])}{detail}. Use the same arguments, or a new output "
+                         f"folder")
     out = {}
     for k, line in enumerate(lines[1:], start=2):
         try:

@@ -141,3 +141,11 @@ def test_components_read_speeds_and_frequencies_as_a_designer_means_them():
     assert Sine(amplitude=1.0, f="300 rpm").params.f == pytest.approx(5.0, rel=1e-12)
     with pytest.raises(ParameterError, match=r"D = '28 cm\^3' gives no angle"):
         FixedDisplacementPump(D="28 cm^3")
+
+
+@pytest.mark.parametrize("given, unit, expected", [
+    ("32 cSt", "m^2/s", 32e-6), ("1.5 t", "kg", 1500.0), ("30 cP", "Pa s", 0.03),
+    ("2 MPa", "Pa", 2e6),
+])
+def test_viscosities_and_tonnes_as_datasheets_write_them(given, unit, expected):
+    assert to_unit(given, unit) == pytest.approx(expected, rel=1e-12)

@@ -117,7 +117,8 @@ def test_ctrl_c_keeps_the_finished_cases_and_resume_runs_only_the_rest(tmp_path)
 
 def test_resume_refuses_the_record_of_another_sweep(tmp_path):
     sweep(square, grid({"x": [1.0, 2.0]}), backend="serial", out=tmp_path)
-    with pytest.raises(SweepError, match="records another sweep"):
+    with pytest.raises(SweepError, match=r"records another sweep .*; case 1 was \{'x': 2.0\}, "
+                                         r"now \{'x': 3.0\}"):
         sweep(square, grid({"x": [1.0, 3.0]}), backend="serial", out=tmp_path, resume=True)
 
 
