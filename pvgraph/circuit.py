@@ -441,6 +441,77 @@ def _leaves(circuit: Circuit) -> list:
     return out
 
 
+def boundary_flows(root: Circuit) -> dict[str, tuple[list[str], str, str]]:
+    """The flows through the exposed ports of ``root``'s sub-circuits that join several
+    inner ports: ``{"bench.P.q": (["bench.node.port.q", "bench.orifice.a.q"], unit, text)}``.
+
+    The flow into a sub-circuit through its port is the sum of the flows into the parts its
+    inner node joins (as the flow of a Modelica connector on a model's boundary), not the flow
+    of the one inner port it was exposed from. A port exposed from a node of one inner port
+    is that port's variable under a second name (:meth:`Circuit.port_aliases`).
+    """
+    out = {}
+
+    def rel(owner) -> str:
+        parts, node = [], owner
+        while node is not None and node is not root:
+            parts.append(node._name)
+            node = node._parent
+        return ".".join(reversed(parts))
+
+    def walk(node: Circuit):
+        for child in node._components.values():
+            if isinstance(child, Circuit):
+                walk(child)
+        if node is root or not node._exposed:
+            return
+        parent: dict = {}
+
+        def find(k):
+            parent.setdefault(k, k)
+            while parent[k] != k:
+                parent[k] = parent[parent[k]]
+                k = parent[k]
+            return k
+
+        def key(ref):
+            return (id(ref.owner), ref.name)
+
+        leaf_ports: dict = {}
+
+        def visit(sub: Circuit):
+            for refs in sub._connections:
+                for r in refs:
+                    if not isinstance(r.owner, Circuit):
+                        leaf_ports[key(r)] = r
+                for a, b in zip(refs, refs[1:]):
+                    parent[find(key(a))] = find(key(b))
+            for name, (ref, _) in sub._exposed.items():
+                if not isinstance(ref.owner, Circuit):
+                    leaf_ports[key(ref)] = ref
+                parent[find((id(sub), name))] = find(key(ref))
+            for child in sub._components.values():
+                if isinstance(child, Circuit):
+                    visit(child)
+
+        visit(node)
+        for port, (ref, _) in node._exposed.items():
+            domain = ref.port.domain
+            if domain.through is None:
+                continue
+            root_key = find((id(node), port))
+            inner = sorted(f"{rel(r.owner)}.{r.name}.{domain.through}"
+                           for k, r in leaf_ports.items() if find(k) == root_key)
+            if len(inner) > 1:
+                out[f"{rel(node)}.{port}.{domain.through}"] = (
+                    inner, domain.through_unit or "",
+                    f"{domain.through} into {rel(node)} through its port {port} (the sum over "
+                    f"the {len(inner)} ports its node joins inside)")
+
+    walk(root)
+    return out
+
+
 def _leaf_port(ref: PortRef):
     """The leaf (component, port name) an exposed port stands for."""
     owner, name = ref.owner, ref.name

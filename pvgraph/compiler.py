@@ -169,6 +169,12 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
                 mode_start.append(float(mstart))
 
     del templates
+    from .circuit import boundary_flows
+    for name, (inner, unit, text) in boundary_flows(circuit).items():
+        total = E.Expr("sym", (), inner[0])
+        for other in inner[1:]:
+            total = total + E.Expr("sym", (), other)
+        observed[name] = (total, unit, text)
     n_component = len(equations)
     equations.extend(_connection_equations(circuit, leaves, infos))
     for eq in equations[n_component:]:

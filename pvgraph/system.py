@@ -480,7 +480,9 @@ class System:
 
         A sub-circuit ``valve`` exposing its part's port ``spool.P`` as ``P`` makes
         ``valve.P.p`` and ``valve.P.q`` names of ``valve.spool.P.p`` and ``valve.spool.P.q``
-        (at any depth; a signal port's exposed name is the port itself). They are not in
+        (at any depth; a signal port's exposed name is the port itself). Where the inner node
+        joins several ports, the flow ``valve.P.q`` is instead a derived output, the flow
+        across the boundary (the sum of theirs; :func:`pvgraph.circuit.boundary_flows`). They are not in
         :meth:`all_names` (each variable is listed once, there, under its canonical name) but
         every lookup accepts them (:meth:`resolve_name`). Empty for a system not compiled
         from a circuit.
