@@ -572,7 +572,8 @@ def cmd_sweep(args) -> int:
     what = "steady states" if args.steady else f"t_end {t_end:g} s"
     print(f"{target.spec}: {len(result)} cases on {backend}, {what}, "
           f"{result.wall_time:.1f} s wall\n")
-    print(_format_table(result, units, args.si))
+    param_units = {n: declared_unit(desc) or "" for n, (_, desc) in valid.items()}
+    print(_format_table(result, units, args.si, param_units))
     print(f"\n{len(result.ok)} ok, {len(result.failed)} not ok; wrote {result.files[0]} and "
           f"{result.files[1]} (SI)")
     for r in result.failed:
@@ -580,16 +581,25 @@ def cmd_sweep(args) -> int:
     return 1 if result.failed else 0
 
 
-def _format_table(result, units, si) -> str:
+def _format_table(result, units, si, param_units=None) -> str:
+    """The sweep's cases as a table: parameters and outputs in the units people read (bar,
+    L/min, mm^2 ...; SI with ``si``), each column headed by its unit."""
     from .units import display
-    heads = list(result.param_names) + [f"{n} [{display(1.0, units.get(n, ''), si)[1]}]"
-                                        for n in result.output_names]
+    param_units = param_units or {}
+
+    def head(name, unit):
+        shown = display(1.0, unit, si)[1] if unit else ""
+        return f"{name} [{shown}]" if shown else name
+
+    heads = [head(p, param_units.get(p, "")) for p in result.param_names] + \
+        [head(n, units.get(n, "")) for n in result.output_names]
     widths = [max(len(h), 10) for h in heads]
     lines = ["case  " + "  ".join(f"{h:>{w}s}" for h, w in zip(heads, widths)) + "  status"]
     lines.append("-" * len(lines[0]))
     for r in result:
-        cells = [f"{r.params[p]:>{w}.6g}" if isinstance(r.params[p], float) else
-                 f"{str(r.params[p]):>{w}s}" for p, w in zip(result.param_names, widths)]
+        cells = [f"{display(r.params[p], param_units.get(p, ''), si)[0]:>{w}.6g}"
+                 if isinstance(r.params[p], float) else f"{str(r.params[p]):>{w}s}"
+                 for p, w in zip(result.param_names, widths)]
         for n, w in zip(result.output_names, widths[len(result.param_names):]):
             v = r.outputs.get(n)
             cells.append(f"{display(v, units.get(n, ''), si)[0]:>{w}.6g}" if v is not None

@@ -380,7 +380,11 @@ def test_sweep_a_file_target_with_units(rig_file, tmp_path, capsys):
     assert data["units"] == {"node.port.p": "Pa"}
     assert (out / "sweep.csv").read_text().splitlines()[0] == \
         "index,status,wall_time,orifice.A,node.port.p [Pa],error_type,error_message"
-    assert "node.port.p [bar]" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "orifice.A [mm^2]" in printed and "node.port.p [bar]" in printed
+    rows = _table_rows(printed, 3)     # parameters and outputs both in the units people read
+    assert [float(rows[k][1]) for k in range(3)] == pytest.approx([1.0, 2.0, 4.0], rel=1e-12)
+    assert [float(rows[k][2]) for k in range(3)] == pytest.approx([x / 1e5 for x in p], rel=1e-5)
 
 
 def test_sweep_steady_states_of_a_file_target(rig_file, tmp_path, capsys):
