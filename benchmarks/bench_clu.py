@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import ctypes
-import hashlib
 import os
 import statistics
 import sys
@@ -127,8 +126,7 @@ def timers():
     cc = cbackend.c_compiler()
     if cc is None:
         sys.exit("bench_clu needs a C compiler")
-    digest = hashlib.sha256("\0".join([TIMERS, cc] + cbackend.CFLAGS).encode()).hexdigest()[:24]
-    lib = ctypes.CDLL(str(cbackend._cached(digest, TIMERS, cc, "the LU timing loops")))
+    lib = ctypes.CDLL(str(cbackend.compiled(TIMERS, "the LU timing loops")))
     vp, i64 = ctypes.c_void_p, ctypes.c_int64
     for name, args in (("time_clu_factor", [vp, vp, vp, i64]),
                        ("time_clu_solve", [vp, vp, vp, vp, i64, i64]),
