@@ -13,7 +13,8 @@ reports, at the optimum ``theta*`` with Jacobian ``J`` of the weighted residuals
   as relative weights, as in :func:`scipy.optimize.curve_fit` with ``absolute_sigma=False``), or
   ``C = (J^T J)^-1`` when ``absolute_sigma=True`` (the sigmas are true standard deviations);
 - standard errors ``sqrt(C_kk)``, two-sided confidence intervals ``theta*_k +- t_{m-n} sqrt(C_kk)``
-  from Student's t, and the correlation matrix;
+  from Student's t (the normal quantile ``z`` with ``absolute_sigma=True``: the scale is known,
+  not estimated), and the correlation matrix;
 - identifiability: ``J^T J`` is inverted through its singular value decomposition; a direction
   whose singular value is below ``rcond`` times the largest is *not identifiable from these
   data*, and every parameter with a component along it gets an infinite interval and is named
@@ -400,7 +401,9 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
     cov[weak, :] = np.inf
     cov[:, weak] = np.inf
     std = np.sqrt(np.diag(cov))
-    if dof > 0:
+    if absolute_sigma:      # known sigmas: the estimate's error is normal, whatever m - n
+        tq = float(stats.norm.ppf(0.5 + confidence / 2.0))
+    elif dof > 0:           # sigma estimated from the residuals: Student's t
         tq = float(stats.t.ppf(0.5 + confidence / 2.0, dof))
     else:
         tq = math.inf

@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..errors import InitializationError
 from ..system import System
@@ -131,29 +132,54 @@ class _CyclicView:
         return J
 
 
+def _sparse(system) -> bool:
+    """Work on sparse Jacobians (a dense solve costs n^3: 6.5 s at 2000 unknowns)."""
+    return system.n > getattr(system, "DENSE_MAX", np.inf) and hasattr(system, "jacobian")
+
+
+def _jacobian(system, t, y, yp, c):
+    """dF/dy + c dF/dy': dense for small systems, CSR above ``DENSE_MAX`` unknowns."""
+    if _sparse(system):
+        return sp.csr_matrix(system.jacobian(t, y, yp, c))
+    return system.jacobian_dense(t, y, yp, c)
+
+
+def _nonzero_columns(J) -> np.ndarray:
+    if sp.issparse(J):
+        return np.asarray(abs(J).sum(axis=0)).ravel() != 0.0
+    return np.any(J != 0.0, axis=0)
+
+
 def _cyclic_states(system, t, y) -> np.ndarray:
     """Angles [rad] entering F only through their derivative (at y and at a nearby point).
 
     Only angles: a pressure or a position rising for ever is no operating point.
     """
     n = system.n
+    angle = np.array([u == "rad" for u in system.units], dtype=bool)
+    if not angle.any():
+        return np.zeros(0, dtype=np.intp)
     zero = np.zeros(n)
-    J0 = system.jacobian_dense(t, y, zero, 0.0)
-    Jyp = system.jacobian_dense(t, y, zero, 1.0) - J0
+    J0 = _jacobian(system, t, y, zero, 0.0)
+    Jyp = _jacobian(system, t, y, zero, 1.0) - J0
     scale = np.where(system.nominal > 0, system.nominal, 1.0)
     shift = 1e-3 * scale * np.cos(np.arange(n) + 0.5)
-    J1 = system.jacobian_dense(t, y + shift, zero, 0.0)
-    flat = np.all(J0 == 0.0, axis=0) & np.all(J1 == 0.0, axis=0)
-    angle = np.array([u == "rad" for u in system.units], dtype=bool)
-    return np.flatnonzero(flat & angle & np.any(Jyp != 0.0, axis=0))
+    J1 = _jacobian(system, t, y + shift, zero, 0.0)
+    flat = ~_nonzero_columns(J0) & ~_nonzero_columns(J1)
+    return np.flatnonzero(flat & angle & _nonzero_columns(Jyp))
 
 
 class _Scaled:
     def __init__(self, system, t, y):
         self.s, self.t = system, t
         self.xs = np.where(system.nominal > 0, system.nominal, 1.0)
-        J = system.jacobian_dense(t, y, np.zeros(system.n), 0.0)
-        rs = np.nanmax(np.abs(J) * self.xs[None, :], axis=1) if system.n else np.zeros(0)
+        J = _jacobian(system, t, y, np.zeros(system.n), 0.0)
+        if sp.issparse(J):
+            J = abs(J) @ sp.diags(self.xs)
+            J.data = np.where(np.isfinite(J.data), J.data, 0.0)
+            rs = np.asarray(J.max(axis=1).todense()).ravel()
+        else:
+            rs = np.nanmax(np.abs(J) * self.xs[None, :], axis=1) if system.n else np.zeros(0)
         rs = np.where(np.isfinite(rs) & (rs > 0), rs, 1.0)
         self.rs = rs
 
@@ -167,7 +193,16 @@ class _Scaled:
 
 
 def _solve(J, rhs):
-    dy = np.linalg.solve(J, rhs)
+    if sp.issparse(J):
+        from scipy.sparse.linalg import splu
+        if not np.all(np.isfinite(J.data)):
+            raise np.linalg.LinAlgError("non-finite Jacobian")
+        try:
+            dy = splu(J.tocsc()).solve(rhs)
+        except RuntimeError as exc:          # "Factor is exactly singular"
+            raise np.linalg.LinAlgError(str(exc)) from None
+    else:
+        dy = np.linalg.solve(J, rhs)
     if not np.all(np.isfinite(dy)):
         raise np.linalg.LinAlgError("non-finite step")
     return dy
@@ -188,7 +223,8 @@ def _newton(sc, y, tol, max_iter, c=0.0, y_prev=None):
     for it in range(1, max_iter + 1):
         if fn <= tol:
             return y, fn, it - 1, True
-        J = s.jacobian_dense(sc.t, y, yp_of(y), c) / sc.rs[:, None]
+        J = _jacobian(s, sc.t, y, yp_of(y), c)
+        J = sp.diags(1.0 / sc.rs) @ J if sp.issparse(J) else J / sc.rs[:, None]
         try:
             dy = _solve(J, -sc.F(y, yp_of(y)))
         except np.linalg.LinAlgError:
@@ -237,8 +273,10 @@ def _continuation(sc, y, tol, max_steps=400, dtau0=1e-6, dtau_max=1e6):
 def _culprits(system, sc, y, k=6):
     f = sc.F(y)
     f = np.where(np.isfinite(f), f, np.inf)
-    J = system.jacobian_dense(sc.t, y, np.zeros(system.n), 0.0)
-    Jyp = system.jacobian_dense(sc.t, y, np.zeros(system.n), 1.0) - J
+    J = _jacobian(system, sc.t, y, np.zeros(system.n), 0.0)
+    Jyp = _jacobian(system, sc.t, y, np.zeros(system.n), 1.0) - J
+    if sp.issparse(J):          # only the rows named below, dense
+        J, Jyp = _Rows(J), _Rows(Jyp)
     lines = []
     for i in np.argsort(-np.abs(f))[:k]:
         if f[i] == 0.0:
@@ -252,6 +290,16 @@ def _culprits(system, sc, y, k=6):
         lines.append(f"  {system.equations[i]}: scaled residual {f[i]:.3g}; "
                      f"{what} {', '.join(cols) or '(none)'}")
     return lines
+
+
+class _Rows:
+    """Dense rows of a sparse matrix on demand (``J[i]``)."""
+
+    def __init__(self, J):
+        self.J = sp.csr_matrix(J)
+
+    def __getitem__(self, i):
+        return self.J.getrow(i).toarray().ravel()
 
 
 def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,

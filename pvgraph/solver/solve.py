@@ -239,6 +239,49 @@ def _lu_kind(linear_solver, residual, n):
     return "c" if _c_system_of(residual) is not None and clu.available() else "lapack"
 
 
+def _first_hit(found, event_list, interpolate, records, t_old, t_new):
+    """Record the crossings ``found`` in a step up to the first one that stops the step (an
+    action or a terminal event), with every crossing at that same instant.
+
+    Returns ``(te, indices, event, y, yp)``: the indices of the events with an action (or
+    terminal) whose zero is at ``te``, in declaration order, and ``event`` the first of them
+    (terminal if any is); or None. Two events with one zero (two steps at one t_step) are
+    located apart only by rounding; both fire.
+    """
+    for k, (te, i, direction) in enumerate(found):
+        ev = event_list[i]
+        ye, ype = interpolate(te)
+        records.append(EventRecord(te, i, ev.name, ye, ype, direction))
+        if not (ev.terminal or ev.action is not None):
+            continue
+        tol = 2.0 * (8.0 * UROUND * max(abs(te), abs(t_new)) + 1e-14 * abs(t_new - t_old))
+        fired = [i]
+        for tj, j, dj in found[k + 1:]:
+            if tj - te > tol:
+                break
+            other = event_list[j]
+            records.append(EventRecord(te, j, other.name, ye, ype, dj))
+            if other.terminal or other.action is not None:
+                fired.append(j)
+        fired.sort()
+        first = next((event_list[j] for j in fired if event_list[j].terminal),
+                     event_list[fired[0]])
+        return te, fired, first, ye, ype
+    return None
+
+
+def _apply_actions(fired, event_list, te, ye, ype, initialise, mode):
+    """The state after the actions of the events ``fired`` at ``te`` (in declaration order),
+    made consistent."""
+    for j in fired:
+        ye, ype = event_list[j].apply(te, ye, ype)
+    try:
+        return initialise(te, ye, ype, mode)
+    except InitializationError as exc:
+        names = ", ".join(repr(event_list[j].name) for j in fired)
+        raise InitializationError(f"after event {names} at t = {te:.9g}: {exc}") from exc
+
+
 def _nonnegative(nonnegative, n, y0, var_names):
     """The indices of the variables constrained to y >= 0 (checked at the start), or None."""
     if nonnegative is None or nonnegative is False:
@@ -373,13 +416,8 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         hit = None
         if tracker is not None and not (c_events and integ.events_quiet()):
             g_new = tracker.evaluate(tn, integ.yy, integ.yp)
-            for te, i, direction in tracker.crossings(t_old, tn, g_new, integ.interpolate):
-                ev = event_list[i]
-                ye, ype = integ.interpolate(te)
-                records.append(EventRecord(te, i, ev.name, ye, ype, direction))
-                if ev.terminal or ev.action is not None:
-                    hit = (te, i, ev, ye, ype)
-                    break
+            hit = _first_hit(tracker.crossings(t_old, tn, g_new, integ.interpolate),
+                             event_list, integ.interpolate, records, t_old, tn)
             tracker.g = g_new
         if t_eval is not None:
             # an output time equal to the time of an action is reported after the action
@@ -398,7 +436,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             ys.append(integ.yy)
             yps.append(integ.yp)
         if hit is not None:
-            te, i, ev, ye, ype = hit
+            te, fired, ev, ye, ype = hit
             if t_eval is None:
                 ts.append(te)
                 ys.append(ye)
@@ -406,12 +444,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             if ev.terminal:
                 message = f"A terminal event ({ev.name!r}) occurred at t = {te:.9g}."
                 break
-            ye, ype = ev.apply(te, ye, ype)
-            try:
-                ye, ype = initialise(te, ye, ype, restart_mode)
-            except InitializationError as exc:
-                raise InitializationError(
-                    f"after event {ev.name!r} at t = {te:.9g}: {exc}") from exc
+            ye, ype = _apply_actions(fired, event_list, te, ye, ype, initialise, restart_mode)
             if t_eval is None:
                 ts.append(te)
                 ys.append(ye.copy())
@@ -429,7 +462,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
                     ts[-1] = t_end
                 break
             integ.reinit(te, ye, ype, t_end)
-            tracker.reset(te, ye, ype, unknown=[i])
+            tracker.reset(te, ye, ype, unknown=fired)
             continue
         if t_end - tn <= END_FUZZ * UROUND * (abs(tn) + abs(integ.hused)):
             break
@@ -445,6 +478,28 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     elif t_eval is None and hit is None:
         ts[-1] = t_end
         ys[-1], yps[-1] = integ.interpolate(t_end)
+    if tracker is not None and hit is None and end_state is None and integ.tn < t_end:
+        # the last step ends within rounding of t_end: a zero exactly at t_end (a step at
+        # t_step = t_end) lies beyond it, in (tn, t_end]
+        ye, ype = integ.interpolate(t_end)
+        g_end = tracker.evaluate(t_end, ye, ype)
+        end_hit = _first_hit(tracker.crossings(integ.tn, t_end, g_end, integ.interpolate),
+                             event_list, integ.interpolate, records, integ.tn, t_end)
+        if end_hit is not None and end_hit[2].terminal:
+            message = (f"A terminal event ({end_hit[2].name!r}) occurred at t = "
+                       f"{end_hit[0]:.9g}.")
+        elif end_hit is not None:
+            ye, ype = _apply_actions(end_hit[1], event_list, t_end, end_hit[3], end_hit[4],
+                                     initialise, restart_mode)
+            if t_eval is None:          # the state before and after, as at other actions
+                ts.append(t_end)
+                ys.append(ye.copy())
+                yps.append(ype.copy())
+            else:
+                for k in range(len(ts) - 1, -1, -1):
+                    if ts[k] < t_end:
+                        break
+                    ys[k], yps[k] = ye.copy(), ype.copy()
 
     nre = counted.calls + integ.nre + jacobian.nfev
     stats = {

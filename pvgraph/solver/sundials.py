@@ -304,12 +304,17 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                 tn = float(out.t)
                 if out.status == IDA_ROOT_RETURN:
                     info = np.asarray(out.i_events[-1])
+                    fired = []      # every root IDA returns here is at this instant
                     for i in np.flatnonzero(info):
                         ev = event_list[i]
                         records.append(EventRecord(tn, int(i), ev.name, out.y.copy(),
                                                    out.yp.copy(), int(np.sign(info[i]))))
-                        if hit is None and (ev.terminal or ev.action is not None):
-                            hit = (tn, int(i), ev, out.y.copy(), out.yp.copy())
+                        if ev.terminal or ev.action is not None:
+                            fired.append(int(i))
+                    if fired:
+                        first = next((event_list[j] for j in fired if event_list[j].terminal),
+                                     event_list[fired[0]])
+                        hit = (tn, fired, first, out.y.copy(), out.yp.copy())
                     if hit is None:
                         continue
                     nsteps += 1     # the step that found the event is left behind
@@ -347,11 +352,12 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                 continue
             if hit is None:
                 break
-            te, i, ev, ye, ype = hit
+            te, fired, ev, ye, ype = hit
             if ev.terminal:
                 message = f"A terminal event ({ev.name!r}) occurred at t = {te:.9g}."
                 break
-            ye, ype = ev.apply(te, ye, ype)
+            for j in fired:
+                ye, ype = event_list[j].apply(te, ye, ype)
             t_start, y, yp = te, ye, ype
             mode = calc_initial if calc_initial is not None else "algebraic"
             if t_end - t_start <= 1e-12 * max(1.0, abs(t_end)):

@@ -267,3 +267,46 @@ def test_a_solution_is_read_only_inside_its_run():
         np.interp(0.05, sol.t, sol["node.port.p"]), rel=1e-15)
     with pytest.raises(PvgraphError, match=r"t = 5 s is outside the run \[0, 0.1\] s"):
         sol.at("node.port.p", 5.0)
+
+
+def _two_sources(second):
+    # a volume filled through a laminar orifice from a pressure that is the sum of two signals
+    from pvgraph.components import PressureInput, Step, Sum
+    c = Circuit("two")
+    s1 = c.add("s1", Step(height=1.0, t_step=0.5))
+    s2 = c.add("s2", second)
+    total = c.add("sum", Sum())
+    c.connect(s1.y, total.u1)
+    c.connect(s2.y, total.u2)
+    src = c.add("src", PressureInput())
+    c.connect(total.y, src.u)
+    leak = c.add("leak", LaminarOrifice(K=1e-11))
+    node = c.add("node", VolumeNode(V="0.1 L"))
+    c.connect(src.port, leak.a)
+    c.connect(leak.b, node.port)
+    return c
+
+
+@pytest.mark.parametrize("solver, backend", [("pvgraph", "python"), ("pvgraph", "c"),
+                                             ("ida", "python")])
+def test_two_steps_at_one_instant_both_switch(solver, backend):
+    from pvgraph.components import Ramp, Step
+    if solver == "ida":
+        pytest.importorskip("sksundae")
+    # values at t = 0.25, 0.5 (right-continuous: after both switches) and 1.0
+    for second, expected in ((Step(height=2.0, t_step=0.5), [0.0, 3.0, 3.0]),
+                             (Ramp(height=2.0, duration=0.2, t_start=0.5), [0.0, 1.0, 3.0])):
+        system = _two_sources(second).compile(backend=backend)
+        sol = simulate(system, 1.0, solver=solver, t_eval=[0.25, 0.5, 1.0])
+        assert sol["sum.y"] == pytest.approx(expected, abs=1e-12)
+
+
+@pytest.mark.parametrize("solver", ["pvgraph", "ida"])
+def test_a_step_at_t_end_has_its_new_value_there(solver):
+    from pvgraph.components import Step
+    if solver == "ida":
+        pytest.importorskip("sksundae")
+    system = _two_sources(Step(height=2.0, t_step=1.0)).compile()
+    sol = simulate(system, 1.0, solver=solver)
+    assert sol.final("sum.y") == 3.0
+    assert "s2.step" in [e.name for e in sol.events]

@@ -146,3 +146,42 @@ def test_an_action_returning_the_wrong_shape_is_named(backend):
     with pytest.raises(ValueError, match=r"action of event 'ground' returned arrays of shapes "
                                          r"\(1,\), \(2,\); expected \(2,\)"):
         solver(ball, (0.0, 2.0), [H0, 0.0], [0.0, -G], events=[broken], rtol=1e-6, atol=1e-8)
+
+
+def _kicks(at_a, at_b):
+    """y' = 0; two events adding 1 and 10 to y at t = at_a and t = at_b."""
+    def kick(amount):
+        def action(t, y, yp):
+            return y + amount, yp
+        return action
+    return [Event(lambda t, y, yp: t - at_a, direction=1, action=kick(1.0), name="a"),
+            Event(lambda t, y, yp: t - at_b, direction=1, action=kick(10.0), name="b")]
+
+
+@pytest.mark.parametrize("at_b", [0.3, 0.3 + 1e-12, 0.31])
+def test_events_at_one_instant_all_fire(at_b):
+    # two zeros at the same t are located apart only by rounding: both actions apply (IDA
+    # returns every root of a step); a zero 1e-12 later fires on its own, as before
+    sol = solve_dae(lambda t, y, yp: np.array([yp[0]]), (0.0, 1.0), [0.0], [0.0],
+                    events=_kicks(0.3, at_b), rtol=1e-8, atol=1e-10)
+    assert sol.y[-1, 0] == 11.0
+    assert sorted(e.name for e in sol.events) == ["a", "b"]
+    assert [e.t for e in sol.events] == pytest.approx([0.3, at_b], abs=1e-13)
+
+
+@pytest.mark.parametrize("terminal", [False, True])
+def test_a_zero_exactly_at_t_end_is_an_event(terminal):
+    # the last step ends within rounding of t_end; y = t reaches 3 exactly there
+    ev = Event(lambda t, y, yp: y[0] - 3.0, name="g", terminal=terminal)
+    sol = solve_dae(lambda t, y, yp: np.array([yp[0] - 1.0]), (0.0, 3.0), [0.0], [1.0],
+                    events=[ev], rtol=1e-8, atol=1e-10)
+    assert [(e.name, e.t) for e in sol.events] == [("g", pytest.approx(3.0, abs=1e-12))]
+    assert sol.y[-1, 0] == pytest.approx(3.0, rel=1e-12)
+
+
+@pytest.mark.parametrize("t_eval", [None, np.array([0.0, 1.0, 3.0])])
+def test_an_action_exactly_at_t_end_gives_the_last_output_its_new_value(t_eval):
+    sol = solve_dae(lambda t, y, yp: np.array([yp[0]]), (0.0, 3.0), [0.0], [0.0],
+                    events=_kicks(3.0, 5.0)[:1], t_eval=t_eval, rtol=1e-8, atol=1e-10)
+    assert sol.t[-1] == 3.0 and sol.y[-1, 0] == 1.0     # right-continuous, as other actions
+    assert [e.name for e in sol.events] == ["a"]
