@@ -633,10 +633,10 @@ def _check_outputs(system, names) -> None:
 
 
 def _frequency_response(lm, freq_hz, output: int, input: int = 0):
+    """G(j 2 pi f) of a linear model at the frequencies ``freq_hz`` [Hz]."""
     import numpy as np
-    A, B, C, D = lm.A, lm.B[:, input], lm.C[output], lm.D[output, input]
-    eye = np.eye(A.shape[0])
-    return np.array([C @ np.linalg.solve(2j * np.pi * f * eye - A, B) + D for f in freq_hz])
+    return lm.frequency_response(2.0 * math.pi * np.asarray(freq_hz, dtype=float), output,
+                                 input)
 
 
 def cmd_linearize(args) -> int:

@@ -23,8 +23,10 @@ their contact indicators, so the stops push the rod back with a stiff spring ``k
 damper ``d_stop`` acting only in contact. At rest against a stop under a force ``F`` the rod is
 ``F / k_stop + eps_stop / 2`` past it.
 Cushioning: over the last ``l_cush`` of travel at each end a viscous force ``d_cush * v`` brakes
-the rod, faded in smoothly (``w_hi``, ``w_lo`` rise from 0 to 1 across the cushion length); this
-is the lumped effect of the throttled outflow of a cushion spear. Observed: ``F_stop``,
+the rod, faded in smoothly: ``w = 3 s^2 - 2 s^3`` with ``s`` from 0 where the cushion begins
+(``l_cush`` before the end) to 1 at the end, so the full ``d_cush`` acts only at the end of
+stroke (half of it halfway in); this is the lumped effect of the throttled outflow of a
+cushion spear. Observed: ``F_stop``,
 ``penetration`` (past the stroke, positive; before 0, negative) and the chamber volumes.
 A rod more than 1 mm past an end (a load starting outside the stroke, a force the stop cannot
 hold) raises a :class:`PlausibilityWarning` once, naming the cylinder.

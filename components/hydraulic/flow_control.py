@@ -94,7 +94,8 @@ class FlowControlValveParams(Params):
 
 
 class FlowControlValve(Component):
-    """2-way pressure-compensated flow control A -> B: holds ``Q_set`` against any pressure."""
+    """2-way pressure-compensated flow control A -> B: holds ``Q_set = Cd A_meter
+    sqrt(2 dp_c / rho)`` (a property of its parameters) against any pressure."""
 
     Params = FlowControlValveParams
     ports = {"A": Hydraulic("inlet"), "B": Hydraulic("outlet")}

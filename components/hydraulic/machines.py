@@ -130,7 +130,9 @@ class PressureCompensatedParams(MachineParams):
 
 
 class PressureCompensatedPump(Component):
-    """Pressure-compensated variable pump: destrokes to hold its delivery at ``p_c``."""
+    """Pressure-compensated variable pump: destrokes to hold its delivery at ``p_c``; the
+    regulation band lies below the setting, full stroke up to ``p_c - dp_reg`` and none at
+    ``p_c`` (a proportional compensator: the pressure held sits inside the band)."""
 
     Params = PressureCompensatedParams
     ports = PUMP_PORTS
@@ -147,7 +149,10 @@ class LoadSensingParams(PressureCompensatedParams):
 
 
 class LoadSensingPump(Component):
-    """Load-sensing variable pump: delivery ``dp_ls`` above the ``LS`` port, cut off at ``p_c``."""
+    """Load-sensing variable pump: delivery ``dp_ls`` above the ``LS`` port, cut off at ``p_c``.
+
+    Proportional compensators: the margin held lies within ``[dp_ls - dp_reg, dp_ls]``
+    (nearer ``dp_ls - dp_reg`` at low flow), the cut-off within ``[p_c - dp_reg, p_c]``."""
 
     Params = LoadSensingParams
     ports = {**PUMP_PORTS, "LS": Hydraulic("load-sensing signal (takes no flow)")}

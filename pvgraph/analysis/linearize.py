@@ -98,6 +98,22 @@ class LinearModel:
         """Steady-state gain ``D - C A^-1 B`` (outputs x inputs)."""
         return self.D - self.C @ np.linalg.solve(self.A, self.B)
 
+    def frequency_response(self, w, output=0, input=0) -> np.ndarray:
+        """``G(j w) = C (j w I - A)^-1 B + D`` of the path ``input -> output`` at the angular
+        frequencies ``w`` [rad/s] (complex, one per frequency)."""
+        i = self._idx(output, self.output_names, "output")
+        j = self._idx(input, self.input_names, "input")
+        w = np.atleast_1d(np.asarray(w, dtype=float))
+        A, b, c, d = self.A, self.B[:, j], self.C[i], self.D[i, j]
+        eye = np.eye(A.shape[0])
+        return np.array([c @ np.linalg.solve(1j * wk * eye - A, b) + d for wk in w])
+
+    def bode(self, w, output=0, input=0):
+        """``(magnitude [dB], phase [deg])`` of the path ``input -> output`` at ``w`` [rad/s];
+        the phase is unwrapped along ``w``."""
+        g = self.frequency_response(w, output, input)
+        return 20.0 * np.log10(np.abs(g)), np.degrees(np.unwrap(np.angle(g)))
+
     def tf(self, output=0, input=0):
         """``(num, den)`` of the transfer function from ``input`` to ``output`` (scipy.signal)."""
         from scipy import signal

@@ -71,6 +71,19 @@ def test_spring_mass_damper_poles():
     assert np.allclose(np.sort_complex(control.poles(ss)), exact, rtol=1e-9)
 
 
+def test_bode_of_spring_mass_damper_is_the_closed_form():
+    # x / F = 1 / (k - m w^2 + j d w): at resonance w_n = sqrt(k/m) the phase is -90 deg and
+    # the magnitude 1 / (d w_n)
+    lm = linearize_circuit(smd, {"F": 10.0}, ["mass.flange.x"])
+    w = np.array([1.0, math.sqrt(KS / M), 500.0])
+    exact = 1.0 / (KS - M * w ** 2 + 1j * D * w)
+    assert np.allclose(lm.frequency_response(w, "mass.flange.x", "F"), exact, rtol=1e-9)
+    mag, phase = lm.bode(w, "mass.flange.x", "F")
+    assert mag == pytest.approx(20.0 * np.log10(np.abs(exact)), abs=1e-8)
+    assert phase[1] == pytest.approx(-90.0, abs=1e-7)
+    assert phase[2] == pytest.approx(np.degrees(np.angle(exact[2])), abs=1e-7)   # near -180
+
+
 def test_margins_with_python_control():
     import control
     G = control.tf([1.0], [1.0, 3.0, 2.0, 0.0])  # 1 / (s (s+1) (s+2))
