@@ -41,8 +41,9 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import maximum_bipartite_matching
 
 from . import expr as E
+from ._roles import template_roles
 from ._templates import Templates
-from .circuit import Circuit
+from .circuit import Circuit, _hydraulic_ports, _port_roles, _roles_of
 from .component import SIGNAL, Component
 from .errors import CircuitError, ConnectionError_, StructureError
 
@@ -141,6 +142,7 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     # their names exchanged (see _Provenance)
     prov = _Provenance()
     var_specs: dict = {}   # component class -> its variables (see _declare_variables)
+    of_template: dict = {}   # template -> [(path, component) built from it]
     # the math functions stay symbolic over the whole loop (each component's trace then only
     # counts itself in and out instead of patching and restoring them)
     with _symbolic_math():
@@ -152,6 +154,10 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
             found.extend(leaves_read)
             if templates.last is not None:
                 tpl, at = templates.last
+                built = of_template.get(tpl)
+                if built is None:
+                    built = of_template[tpl] = []
+                built.append((path, comp))
                 rows = list(residuals) + [ev.condition for ev in v.events]
                 nodes = tpl.last_nodes or ()
                 prov.add_rows(rows, prov.template_keys(tpl, len(rows)), tpl.row_names(at),
@@ -168,6 +174,8 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
                 mode_start.append(float(mstart))
 
     del templates
+    roles = template_roles(of_template, registry, _roles_of, _traced_roles)
+    del of_template
     n_component = len(equations)
     equations.extend(_connection_equations(circuit, leaves, infos))
     for eq in equations[n_component:]:
@@ -202,9 +210,15 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
                           mode_start, parameters=registry, tables=trace.tables,
                           array_rows=array_rows, provenance=prov)
     system._circuit = circuit
+    system._known_roles = roles     # for the no-reference check (Circuit.compile takes them)
     system._components = dict(leaves)
     system._models = {path: comp.params for path, comp in leaves}
     return reduction.attach(system)
+
+
+def _traced_roles(comp, path):
+    """The port roles of ``comp`` traced with numbers (see :mod:`pvgraph._roles`)."""
+    return _port_roles(comp, path, _hydraulic_ports(comp))
 
 
 # 1. flatten ---------------------------------------------------------------------------------

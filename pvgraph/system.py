@@ -867,7 +867,9 @@ class System:
         try:
             for path, model in merged.items():
                 comps[path].params = model
-            return compile_circuit(self._circuit)
+            system = compile_circuit(self._circuit)
+            system.__dict__.pop("_known_roles", None)   # needed by Circuit.compile only
+            return system
         finally:
             for path, model in saved.items():
                 comps[path].params = model
