@@ -30,7 +30,6 @@ alias elimination, each volume contributes its own flow unknown, and the DAE sta
 
 from __future__ import annotations
 
-import contextlib
 import gc
 import itertools
 import zlib
@@ -42,7 +41,7 @@ from scipy.sparse.csgraph import maximum_bipartite_matching
 
 from . import expr as E
 from ._roles import template_roles
-from ._templates import Templates
+from ._templates import Templates, read_sets
 from .circuit import Circuit, _hydraulic_ports, _port_roles, _roles_of
 from .component import SIGNAL, Component
 from .errors import CircuitError, ConnectionError_, StructureError
@@ -143,14 +142,13 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     prov = _Provenance()
     var_specs: dict = {}   # component class -> its variables (see _declare_variables)
     of_template: dict = {}   # template -> [(path, component) built from it]
-    # the math functions stay symbolic over the whole loop (each component's trace then only
-    # counts itself in and out instead of patching and restoring them)
-    with _symbolic_math():
+    # the parameter trace is active over the whole loop (the start values read numbers only);
+    # the math functions of the vocabulary stay symbolic throughout
+    with trace:
         for path, comp in leaves:
             _declare_variables(path, comp, infos, registry, var_specs)
             trace.where = f"{type(comp).__name__}.equations of {path!r}"
-            with trace:
-                residuals, v, leaves_read = templates.trace(comp, path, registry, trace)
+            residuals, v, leaves_read = templates.trace(comp, path, registry, trace)
             found.extend(leaves_read)
             if templates.last is not None:
                 tpl, at = templates.last
@@ -182,10 +180,9 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
         got = _connection_key(eq.expr)
         if got is not None:
             prov.add(eq.expr, *got)
-            # the leaves of ``a - b`` or ``q1 + ... + qn``: its distinct names, in order
-            found.append([("sym", nm) for nm in got[1]])
+            found.append((set(got[1]), set()))   # ``a - b`` or ``q1 + ... + qn``
         else:
-            found.append(E.leaves(eq.expr, ("sym", "der")))
+            found.append(read_sets(eq.expr))
     _check_symbols(equations, found, infos, set(mode_names))
 
     for name, info in registry.items():
@@ -222,16 +219,6 @@ def _traced_roles(comp, path):
 
 
 # 1. flatten ---------------------------------------------------------------------------------
-
-@contextlib.contextmanager
-def _symbolic_math():
-    """The ``math`` functions of the expression vocabulary symbolic (as while tracing)."""
-    E._patch_math()
-    try:
-        yield
-    finally:
-        E._unpatch_math()
-
 
 def _flatten(circuit: Circuit) -> list[tuple[str, Component]]:
     out = []
@@ -451,13 +438,14 @@ def _signal_set(labels, specs, exposed):
 
 
 def _check_symbols(equations, found, infos, modes):
-    """Every symbol an equation reads is a variable or a mode (``found``: their leaves)."""
-    pairs = set(itertools.chain.from_iterable(found))
-    if {nm for _, nm in pairs} - infos.keys() <= modes and \
-            not any(("der", m) in pairs for m in modes):
+    """Every symbol an equation reads is a variable or a mode (``found``: per equation, the
+    names of the variables and derivatives it reads)."""
+    syms = set().union(*[s for s, _ in found])
+    ders = set().union(*[d for _, d in found])
+    if (syms | ders) - infos.keys() <= modes and ders.isdisjoint(modes):
         return    # all is well (else the loop below names the first equation at fault)
-    for eq, leaves in zip(equations, found):
-        for op, name in leaves:
+    for eq in equations:
+        for op, name in E.leaves(eq.expr, ("sym", "der")):
             if name not in infos and name not in modes:
                 raise CircuitError(f"{eq.label} uses the unknown variable {name!r}")
             if op == "der" and name in modes:
@@ -632,7 +620,8 @@ class _Provenance:
     """
 
     def __init__(self):
-        self.rows: dict[int, tuple] = {}   # id(row) -> (row, key number, names, nodes or None)
+        self.rows: dict[int, tuple] = {}   # id(row) -> (row, key number, names)
+        self.nodes: dict[int, list] = {}   # id(row) -> its nodes in post-order, where known
         self.keys: dict = {}
         self._in_token: dict[int, tuple] = {}
         self._builders: dict[int, object] = {}   # key number -> builder, candidate or False
@@ -645,7 +634,9 @@ class _Provenance:
         return k
 
     def add(self, row, key, names, nodes=None):
-        self.rows[id(row)] = (row, self.number(key), names, nodes)
+        self.rows[id(row)] = (row, self.number(key), names)
+        if nodes is not None:
+            self.nodes[id(row)] = nodes
 
     def template_keys(self, tpl, n) -> list:
         """The key numbers of the rows ``(tpl, 0)``, ..., ``(tpl, n - 1)``."""
@@ -658,15 +649,13 @@ class _Provenance:
         """:meth:`add` of each row with its key number, names and nodes (the first
         ``len(nodes)`` rows have theirs)."""
         got = self.rows
-        n = len(nodes)
-        for k, (row, key, nm) in enumerate(zip(rows, numbers, names)):
-            got[id(row)] = (row, key, nm, nodes[k] if k < n else None)
+        for row, key, nm in zip(rows, numbers, names):
+            got[id(row)] = (row, key, nm)
+        self.nodes.update(zip(map(id, rows), nodes))
 
     def forget_nodes(self):
         """Drop the rows' node lists (needed while substituting only)."""
-        for k, p in self.rows.items():
-            if p[3] is not None:
-                self.rows[k] = p[:3] + (None,)
+        self.nodes = {}
 
     def get(self, row):
         """``(key number, names)`` of ``row``, or None."""
@@ -679,7 +668,8 @@ class _Provenance:
         p = self.rows.get(id(old))
         if p is None or p[0] is not old:
             return _apply(old, subs, resolve)
-        _, key, names, old_nodes = p
+        _, key, names = p
+        old_nodes = self.nodes.pop(id(old), None)
         pattern = []
         cls: dict[str, int] = {}
         out = []
@@ -718,10 +708,11 @@ class _Provenance:
             if old_nodes is None:
                 old_nodes = E.postorder([old])
             new, nodes = state(names, old_nodes)
-            self.rows[id(new)] = (new, k, names, nodes)
+            self.rows[id(new)] = (new, k, names)
+            self.nodes[id(new)] = nodes
             return new
         new = _apply(old, subs, resolve)
-        self.rows[id(new)] = (new, k, names, None)
+        self.rows[id(new)] = (new, k, names)
         # the first row of a key is substituted as it is; the second gives a candidate
         # builder (a key met once costs no builder), the third checks it
         if state is None:
@@ -850,14 +841,13 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
     The unknown removed must have a constant coefficient, so that no parameter value can make
     the elimination divide by zero; the other coefficient and the offset may be parametric.
     ``values`` holds the parameters' compile-time values (for carrying start values);
-    ``found`` the ``(op, name)`` leaves of each equation, if known. ``incidence``, a list,
-    receives ``(values read, derivatives read)`` (sets of names) of each equation returned.
+    ``found`` the names of the values and of the derivatives each equation reads (two sets
+    per equation, taken over), if known. ``incidence``, a list, receives ``(values read,
+    derivatives read)`` (sets of names) of each equation returned.
     """
     if found is None:
-        found = [E.leaves(eq.expr, ("sym", "der")) for eq in equations]
-    used_der: set[str] = set()
-    for leaves in found:
-        used_der.update(name for op, name in leaves if op == "der")
+        found = [read_sets(eq.expr) for eq in equations]
+    used_der: set[str] = set().union(*[d for _, d in found])
 
     def num(x):
         return x if isinstance(x, float) else E.evaluate(x, values)
@@ -974,11 +964,8 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
     # skipped: each pass costs the equations that changed, not the circuit. Each equation's
     # values and derivatives read are kept (exactly, or a superset read again where it
     # matters) for the affine test and the incidence of the later stages.
-    remaining = []
-    for eq, leaves in zip(equations, found):
-        syms = {nm for op, nm in leaves if op == "sym"}
-        ders = {nm for op, nm in leaves if op == "der"}
-        remaining.append([eq, eq.expr, syms, ders, True, True])
+    remaining = [[eq, eq.expr, syms, ders, True, True]
+                 for eq, (syms, ders) in zip(equations, found)]
     other = None
     changed = True
     while changed:

@@ -21,6 +21,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import difflib
+import itertools
 import math
 import operator
 import threading
@@ -1144,8 +1145,9 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     category: dict[str, int] = dict.fromkeys(index, 1)
     for nm in mode_index:
         category[nm] = category.get(nm, 0) + 2
-    for nm in pindex:
-        category[nm] = category.get(nm, 0) + 4
+    for nm in pindex.keys() & category.keys():
+        category[nm] += 4
+    category.update(dict.fromkeys(pindex.keys() - category.keys(), 4))
     category_of = category.get
     # id(row) -> (row, key, names, ...), as provenance.get(row) reads it
     prov_rows = provenance.rows if provenance is not None else None
@@ -1182,7 +1184,44 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
 
     lookup = {"y": index, "yp": index, "param": pindex, "mode": mode_index}
 
-    groups, scalar_rows = _array_groups(raw, array_rows, compiled_leaf, shape_of=shape_of)
+    def shapes_of(rows):
+        """:func:`shape_of` of each row; the kinds of the names of the rows of one
+        provenance key are looked up together, and rows of one key and kinds share one
+        shape and one slot list."""
+        if prov_rows is None:
+            return [shape_of(r) for r in rows]
+        out = [None] * len(rows)
+        by_key: dict = {}     # (key, number of names) -> (positions, names of each row)
+        for i, row in enumerate(rows):
+            p = prov_rows.get(id(row))
+            if p is None or p[0] is not row:
+                out[i] = codegen.row_shape(row, compiled_leaf)
+                continue
+            names = p[2]
+            b = by_key.get((p[1], len(names)))
+            if b is None:
+                b = by_key[p[1], len(names)] = ([], [])
+            b[0].append(i)
+            b[1].append(names)
+        for (key, width), (at, names_of) in by_key.items():
+            kinds = np.fromiter(map(category.get, itertools.chain.from_iterable(names_of),
+                                    itertools.repeat(0)), dtype=np.int64,
+                                count=width * len(at)).reshape(len(at), width)
+            alike = (kinds == kinds[0]).all(axis=1)
+            shape = slots = started = None
+            for i, names, same in zip(at, names_of, alike.tolist()):
+                if not same:
+                    out[i] = shape_of(rows[i])
+                    continue
+                if not started:
+                    started = True
+                    out[i] = shape_of(rows[i])   # computes, or finds, the shape
+                    shape, slots = shape_cache[key, tuple(map(category_of, names))]
+                    continue
+                out[i] = None if shape is None else (shape, _Slots(names, slots, lookup))
+        return out
+
+    groups, scalar_rows = _array_groups(raw, array_rows, compiled_leaf, shapes_of=shapes_of)
     if groups:
         scalar_res = E.substitute([raw[i] for i in scalar_rows], leaf)
     else:
@@ -1213,8 +1252,7 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
             inc_y[row] = sorted(ys)
             inc_yp[row] = sorted(yps)
     differential = np.zeros(len(names), dtype=bool)
-    for cols in inc_yp:
-        differential[cols] = True
+    differential[np.fromiter(itertools.chain.from_iterable(inc_yp), dtype=np.int64)] = True
     check_structure(names, labels, inc_y, inc_yp, differential)
     del inc_y, inc_yp
     if not groups:
@@ -1223,7 +1261,7 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     # events: repeated shapes as arrays too
     ev_raw = [ev.condition for _, ev in events]
     ev_groups, ev_scalar = _array_groups(ev_raw, array_rows, compiled_leaf, len(raw),
-                                         shape_of=shape_of)
+                                         shapes_of=shapes_of)
     ev_exprs = E.substitute([ev_raw[i] for i in ev_scalar], leaf) if ev_scalar else []
 
     # parametric subexpressions (constants and parameters only) are computed once per parameter
@@ -1471,11 +1509,12 @@ class _ArrayPart:
         self.uses_modes = any(g.index["mode"] for g in groups)
 
 
-def _array_groups(exprs, array_rows, leaf_of=None, n_rows=None, shape_of=None):
+def _array_groups(exprs, array_rows, leaf_of=None, n_rows=None, shapes_of=None):
     """Split rows into groups of one shape (evaluated as arrays) and the rest.
 
     ``n_rows`` (default ``len(exprs)``) is the size of the system, for the automatic choice;
-    ``shape_of(row)`` gives :func:`pvgraph.codegen.row_shape` of a row (default: computed).
+    ``shapes_of(rows)`` gives :func:`pvgraph.codegen.row_shape` of each row (default:
+    computed).
     """
     size = len(exprs) if n_rows is None else n_rows
     if not exprs or array_rows is False or (array_rows is None and size < ARRAY_MIN_ROWS):
@@ -1483,8 +1522,9 @@ def _array_groups(exprs, array_rows, leaf_of=None, n_rows=None, shape_of=None):
     min_group = 2 if array_rows is True else ARRAY_MIN_GROUP
     by_shape: dict = {}
     scalar = []
-    for i, r in enumerate(exprs):
-        shape = codegen.row_shape(r, leaf_of) if shape_of is None else shape_of(r)
+    shapes = [codegen.row_shape(r, leaf_of) for r in exprs] if shapes_of is None else \
+        shapes_of(exprs)
+    for i, shape in enumerate(shapes):
         if shape is None:
             scalar.append(i)
             continue
