@@ -191,7 +191,9 @@ class Template:
         parameters read (in the order first read, as :class:`ParameterInfo`, values from
         ``params``), then one statement per node, leaves named from the instance's ``names``
         (see :meth:`_prepare`; parameter leaves shared per name through ``trace``, as
-        :meth:`pvgraph.expr.ParameterTrace.leaf` makes them)."""
+        :meth:`pvgraph.expr.ParameterTrace.leaf` makes them; constants are the template's
+        nodes, shared by all instances: nothing downstream tells constant nodes apart by
+        identity, only by value)."""
         num: dict[int, str] = {}
         kept = []
         lines = ["def build(N, trace, registry, P, path):",
@@ -233,8 +235,8 @@ class Template:
                           f"    if {var} is None:",
                           f"        {var} = LV[{full}] = X('param', (), {full})",
                           f"        VS.setdefault({full}, registry[{full}].value)"]
-            elif op == "const":
-                lines.append(f"    {var} = X('const', (), K[{len(kept)}].value)")
+            elif op == "const":     # a number: the template's node itself (never renamed)
+                num[id(node)] = f"K[{len(kept)}]"
                 kept.append(node)
             else:
                 lines.append(f"    {var} = X({op!r}, (), None)")

@@ -185,9 +185,13 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
             found.append(read_sets(eq.expr))
     _check_symbols(equations, found, infos, set(mode_names))
 
-    for name, info in registry.items():
-        trace.values.setdefault(name, info.value)
-        info.structural = trace.structural.get(name, "")
+    # every parameter has its value (those read as leaves have theirs) and, where the
+    # equations made it a number, the reason (the others keep the default "")
+    values = trace.values
+    for name in registry.keys() - values.keys():
+        values[name] = registry[name].value
+    for name in trace.structural.keys() & registry.keys():
+        registry[name].structural = trace.structural[name]
 
     subs: dict[str, tuple] = {}
     incidence = None

@@ -289,9 +289,13 @@ def reduce_index(equations, infos, subs, events, observed, given=None, incidence
             lv = E.leaves(eq.expr, ("sym", "der"))
             incidence.append(({v for op, v in lv if op == "sym"},
                               {v for op, v in lv if op == "der"}))
+    number, known = pos.__getitem__, pos.keys()
     for syms, ders in incidence:
-        inc_y.append({pos[v] for v in syms if v in pos})
-        inc_yp.append({pos[v] for v in ders if v in pos})
+        # the common case (every name an unknown) in one pass, the same sets either way
+        inc_y.append(set(map(number, syms)) if known >= syms else
+                     {pos[v] for v in syms if v in pos})
+        inc_yp.append(set(map(number, ders)) if known >= ders else
+                      {pos[v] for v in ders if v in pos})
     differential = np.zeros(n, dtype=bool)
     differential[np.fromiter(itertools.chain.from_iterable(inc_yp), dtype=np.int64)] = True
     highest = [b | {j for j in a if not differential[j]} for a, b in zip(inc_y, inc_yp)]
