@@ -500,10 +500,16 @@ def _shape_key(value):
             return all_float
         out = [cls]
         for item in items:
-            item = float if type(item) is float else _shape_key(item)
-            if item is None:
-                return None
-            out.append(item)
+            kind = type(item)
+            if kind is float:
+                out.append(float)
+            elif item is None or kind is bool or kind is int or kind is str:
+                out.append((kind, item))    # as below, without the call
+            else:
+                item = _shape_key(item)
+                if item is None:
+                    return None
+                out.append(item)
         return tuple(out)
     if isinstance(value, float):
         return float

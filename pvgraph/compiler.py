@@ -560,8 +560,13 @@ def _kzero(x):
 
 
 def _kadd(a, b):
-    if isinstance(a, float) and isinstance(b, float):
+    fa, fb = isinstance(a, float), isinstance(b, float)
+    if fa and fb:
         return a + b
+    if fa and a == 0.0 and b.op != "const":     # 0 + b folds to b (no node made for the 0)
+        return b
+    if fb and b == 0.0 and a.op != "const":
+        return a
     return _knorm(E.as_expr(a) + E.as_expr(b))
 
 
@@ -570,14 +575,22 @@ def _kneg(a):
 
 
 def _kmul(a, b):
-    if isinstance(a, float) and isinstance(b, float):
+    fa, fb = isinstance(a, float), isinstance(b, float)
+    if fa and fb:
         return a * b
+    if fa and a == 1.0 and b.op != "const":     # 1 * b folds to b (no node made for the 1)
+        return b
+    if fb and b == 1.0 and a.op != "const":
+        return a
     return _knorm(E.as_expr(a) * E.as_expr(b))
 
 
 def _kdiv(a, b):
-    if isinstance(a, float) and isinstance(b, float):
+    fb = isinstance(b, float)
+    if fb and isinstance(a, float):
         return a / b
+    if fb and (b == 1.0 or b == -1.0) and a.op != "const":   # folds to a or -a
+        return a if b == 1.0 else _knorm(-a)
     return _knorm(E.as_expr(a) / E.as_expr(b))
 
 

@@ -281,7 +281,7 @@ def reduce_index(equations, infos, subs, events, observed, given=None, incidence
     n = len(unknowns)
     if len(equations) != n or n == 0:
         return equations, events, observed, IndexReduction()
-    pos = {nm: i for i, nm in enumerate(unknowns)}
+    pos = dict(zip(unknowns, range(n)))
     inc_y, inc_yp = [], []
     if incidence is None:
         incidence = []

@@ -111,7 +111,7 @@ class System:
         self.name = name
         self.names = names
         self.n = len(names)
-        self.index = {nm: i for i, nm in enumerate(names)}
+        self.index = dict(zip(names, range(len(names))))
         self.differential = np.asarray(differential, dtype=bool)
         self.algebraic = ~self.differential
         self.y0 = np.asarray(y0, dtype=float)
@@ -1078,12 +1078,12 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     from .compiler import check_structure
 
     parameters = dict(parameters or {})
-    pindex = {nm: k for k, nm in enumerate(parameters)}
+    pindex = dict(zip(parameters, range(len(parameters))))
     tables = list(tables)
     for j, tab in enumerate(tables):  # runtime tables follow the parameters in P
         tab.slot = len(parameters) + j
     names = [nm for nm in infos if nm not in subs]
-    index = {nm: i for i, nm in enumerate(names)}
+    index = dict(zip(names, range(len(names))))
     mode_index = {nm: j for j, nm in enumerate(mode_names)}
 
     def param_leaf(node):
@@ -1141,14 +1141,19 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     # rows of one shape repeated often enough are evaluated as arrays over their instances
     # (templated from the traced rows directly); the others get straight-line code
     shape_cache: dict = {}
-    # what a name is to compiled_leaf: 1 an unknown, 2 a mode, 4 a parameter (summed)
-    category: dict[str, int] = dict.fromkeys(index, 1)
-    for nm in mode_index:
-        category[nm] = category.get(nm, 0) + 2
-    for nm in pindex.keys() & category.keys():
-        category[nm] += 4
-    category.update(dict.fromkeys(pindex.keys() - category.keys(), 4))
-    category_of = category.get
+    # what a name is to compiled_leaf, in the low three bits: 1 an unknown, 2 a mode, 4 a
+    # parameter (summed), and above them its number as that (a name of one kind only)
+    code: dict[str, int] = dict(zip(pindex, range(4, 8 * len(pindex) + 4, 8)))
+    several = index.keys() & code.keys()
+    code.update(zip(index, range(1, 8 * len(index) + 1, 8)))
+    for nm in several:
+        code[nm] = 5
+    for nm, j in mode_index.items():
+        c = code.get(nm)
+        code[nm] = (j << 3) | 2 if c is None else (c & 7) | 2
+
+    def category_of(nm):
+        return code.get(nm, 0) & 7
     # id(row) -> (row, key, names, ...), as provenance.get(row) reads it
     prov_rows = provenance.rows if provenance is not None else None
 
@@ -1204,21 +1209,26 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
             b[0].append(i)
             b[1].append(names)
         for (key, width), (at, names_of) in by_key.items():
-            kinds = np.fromiter(map(category.get, itertools.chain.from_iterable(names_of),
+            codes = np.fromiter(map(code.get, itertools.chain.from_iterable(names_of),
                                     itertools.repeat(0)), dtype=np.int64,
                                 count=width * len(at)).reshape(len(at), width)
+            kinds = codes & 7
             alike = (kinds == kinds[0]).all(axis=1)
-            shape = slots = started = None
-            for i, names, same in zip(at, names_of, alike.tolist()):
+            if not np.isin(kinds[0], (0, 1, 2, 4)).all():
+                alike[:] = False    # a name of several kinds: row by row
+            shape = slots = block = None
+            for j, (i, names, same) in enumerate(zip(at, names_of, alike.tolist())):
                 if not same:
                     out[i] = shape_of(rows[i])
                     continue
-                if not started:
-                    started = True
-                    out[i] = shape_of(rows[i])   # computes, or finds, the shape
-                    shape, slots = shape_cache[key, tuple(map(category_of, names))]
+                if j == 0:      # the first row computes (or finds) the shape
+                    out[i] = shape_of(rows[i])
+                    shape, slots = shape_cache[key, tuple(kinds[0].tolist())]
+                    if shape is not None:   # every row's slot payloads, as arrays
+                        block = {kind: codes[:, places] >> 3 for kind, places in slots.items()}
                     continue
-                out[i] = None if shape is None else (shape, _Slots(names, slots, lookup))
+                out[i] = None if shape is None else \
+                    (shape, _Slots(names, slots, lookup, block, j))
         return out
 
     groups, scalar_rows = _array_groups(raw, array_rows, compiled_leaf, shapes_of=shapes_of)
@@ -1452,14 +1462,18 @@ class _ArrayRows:
 
 class _Slots:
     """The payloads of a row's slots, per kind, as the names of its provenance key's places:
-    ``slots[kind]`` lists the place of each slot's name, ``lookup[kind]`` numbers names."""
+    ``slots[kind]`` lists the place of each slot's name, ``lookup[kind]`` numbers names.
+    ``block[kind][j]``, where given, holds them already (row ``j`` of a block of rows of one
+    provenance key)."""
 
-    __slots__ = ("names", "slots", "lookup")
+    __slots__ = ("names", "slots", "lookup", "block", "j")
 
-    def __init__(self, names, slots, lookup):
+    def __init__(self, names, slots, lookup, block=None, j=0):
         self.names = names
         self.slots = slots
         self.lookup = lookup
+        self.block = block
+        self.j = j
 
     def __getitem__(self, kind):
         number, names = self.lookup[kind], self.names
@@ -1474,8 +1488,16 @@ def _slot_arrays(leaves_per_row) -> dict:
     out = {kind: [np.empty(n, dtype=np.int64) for _ in range(len(first[kind]))]
            for kind in codegen.SLOT_LEAVES}
     batches: dict[int, tuple] = {}
+    blocks: dict[int, tuple] = {}
     for k, lv in enumerate(leaves_per_row):
         if lv.__class__ is _Slots:
+            if lv.block is not None:
+                b = blocks.get(id(lv.block))
+                if b is None:
+                    b = blocks[id(lv.block)] = (lv.block, [], [])
+                b[1].append(k)
+                b[2].append(lv.j)
+                continue
             b = batches.get(id(lv.slots))
             if b is None:
                 b = batches[id(lv.slots)] = (lv.slots, lv.lookup, [], [])
@@ -1485,6 +1507,12 @@ def _slot_arrays(leaves_per_row) -> dict:
             for kind in codegen.SLOT_LEAVES:
                 for s, v in enumerate(lv[kind]):
                     out[kind][s][k] = v
+    for block, at, js in blocks.values():
+        at, js = np.asarray(at, dtype=np.int64), np.asarray(js, dtype=np.int64)
+        for kind in codegen.SLOT_LEAVES:
+            got = block[kind][js]
+            for s in range(got.shape[1]):
+                out[kind][s][at] = got[:, s]
     for slots, lookup, at, names in batches.values():
         at = np.asarray(at, dtype=np.int64)
         for kind in codegen.SLOT_LEAVES:
