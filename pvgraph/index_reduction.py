@@ -298,7 +298,8 @@ def reduce_index(equations, infos, subs, events, observed, given=None, incidence
                       {pos[v] for v in ders if v in pos})
     differential = np.zeros(n, dtype=bool)
     differential[np.fromiter(itertools.chain.from_iterable(inc_yp), dtype=np.int64)] = True
-    highest = [b | {j for j in a if not differential[j]} for a, b in zip(inc_y, inc_yp)]
+    differentials = set(np.flatnonzero(differential).tolist())
+    highest = [b | (a - differentials) for a, b in zip(inc_y, inc_yp)]
     if _perfect(highest, n):
         return equations, events, observed, IndexReduction()
     if not _perfect([a | b for a, b in zip(inc_y, inc_yp)], n):
@@ -308,7 +309,7 @@ def reduce_index(equations, infos, subs, events, observed, given=None, incidence
 
 def _perfect(cols, n):
     rows = np.repeat(np.arange(len(cols)), [len(c) for c in cols])
-    flat = np.fromiter((j for c in cols for j in c), dtype=np.int64, count=len(rows))
+    flat = np.fromiter(itertools.chain.from_iterable(cols), dtype=np.int64, count=len(rows))
     m = csr_matrix((np.ones(len(rows)), (rows, flat)), shape=(len(cols), n))
     match = maximum_bipartite_matching(m, perm_type="column")
     return bool(np.all(match >= 0))
@@ -687,7 +688,7 @@ def _components(eqs, cand, inc):
 def _matching(cols, n_var):
     """Equation -> column maximum matching (-1 where unmatched)."""
     rows = np.repeat(np.arange(len(cols)), [len(c) for c in cols])
-    flat = np.fromiter((j for c in cols for j in c), dtype=np.int64, count=len(rows))
+    flat = np.fromiter(itertools.chain.from_iterable(cols), dtype=np.int64, count=len(rows))
     m = csr_matrix((np.ones(len(rows)), (rows, flat)), shape=(len(cols), max(n_var, 1)))
     return maximum_bipartite_matching(m, perm_type="column")
 

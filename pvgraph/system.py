@@ -1092,7 +1092,12 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
         return None
 
     def numbered(x):
-        return x if isinstance(x, float) else E.substitute([x], param_leaf)[0]
+        if isinstance(x, float):
+            return x
+        if x.op == "param":    # a parameter leaf (the common case), as substitute makes it
+            got = param_leaf(x)
+            return x if got is None else got
+        return E.substitute([x], param_leaf)[0]
 
     subs = {nm: (numbered(c), t, numbered(o)) for nm, (c, t, o) in subs.items()}
 
