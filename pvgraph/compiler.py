@@ -253,17 +253,23 @@ def _rel_path(root: Circuit, owner) -> str:
 def _declare_variables(path, comp, infos, registry, specs=None):
     """Enter the variables of ``comp`` (ports' across and through variables, then its own) in
     ``infos`` with their start values. ``specs``: a dict kept over one compilation, holding
-    each class's list of variables (see :func:`_variable_specs`)."""
-    starts = comp.start_values_traced(path, registry)
-    explicit_user = comp._start
+    each class's list of variables (see :func:`_variable_specs`) and, for a class whose start
+    values read no parameters, those of the class."""
     cls = type(comp)
-    # keys of the parameter-derived start values (none where the class keeps the default)
-    from_params = comp.starts(comp.params) if cls.starts is not Component.starts else ()
-    spec = None if specs is None else specs.get(cls)
-    if spec is None:
-        spec = _variable_specs(cls)
+    got = None if specs is None else specs.get(cls)
+    if got is None:
+        got = (_variable_specs(cls), _class_starts(cls))
         if specs is not None:
-            specs[cls] = spec
+            specs[cls] = got
+    spec, fixed = got
+    explicit_user = comp._start
+    if fixed is not None:   # as start_values_traced gives them, no parameter read
+        starts = {**fixed, **explicit_user} if explicit_user else fixed
+        from_params = ()
+    else:
+        starts = comp.start_values_traced(path, registry)
+        # keys of the parameter-derived start values (none where the class keeps the default)
+        from_params = comp.starts(comp.params) if cls.starts is not Component.starts else ()
     for suffix, unit, key, nominal, desc, how in spec:
         name = path + suffix
         if how == 1:      # a through variable: starts at zero, never given
@@ -272,6 +278,16 @@ def _declare_variables(path, comp, infos, registry, specs=None):
         start = float(starts.get(key, 0.0)) if how == 0 else float(starts[key])
         prio = 2 if key in explicit_user else 1 if key in from_params else 0
         infos[name] = VarInfo(name, unit, start, nominal, desc, path, prio)
+
+
+def _class_starts(cls):
+    """The start values of every instance of ``cls`` before the user's, where they read no
+    parameters (no parameter-derived ``starts``, constant variable starts), else None."""
+    if cls.starts is not Component.starts or \
+            cls.start_values_traced is not Component.start_values_traced or \
+            any(callable(var.start) for var in cls.variables.values()):
+        return None
+    return {name: var.start for name, var in cls.variables.items()}
 
 
 def _variable_specs(cls) -> list:
