@@ -175,9 +175,9 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     roles = template_roles(of_template, registry, _roles_of, _traced_roles)
     del of_template
     n_component = len(equations)
-    equations.extend(_connection_equations(circuit, leaves, infos))
-    for eq in equations[n_component:]:
-        got = _connection_key(eq.expr)
+    keys: list = []
+    equations.extend(_connection_equations(circuit, leaves, infos, keys))
+    for eq, got in zip(equations[n_component:], keys):
         if got is not None:
             prov.add(eq.expr, *got)
             found.append((set(got[1]), set()))   # ``a - b`` or ``q1 + ... + qn``
@@ -311,7 +311,9 @@ def _variable_specs(cls) -> list:
     return out
 
 
-def _connection_equations(root, leaves, infos) -> list[_Equation]:
+def _connection_equations(root, leaves, infos, keys=None) -> list[_Equation]:
+    """The equations of the connection sets. ``keys``, a list, receives each equation's
+    provenance (as :func:`_connection_key` reads it off the equation)."""
     # ports numbered in the order met; connection sets by union-find over those numbers,
     # listed in the order of their first port (as a graph's connected components are)
     index: dict[tuple, int] = {}
@@ -377,7 +379,10 @@ def _connection_equations(root, leaves, infos) -> list[_Equation]:
                                    f"joins ports of one domain only.")
         domain = specs[0].domain
         if domain is SIGNAL:
-            equations.extend(_signal_set(labels, specs, exposed))
+            signal = _signal_set(labels, specs, exposed)
+            equations.extend(signal)
+            if keys is not None:
+                keys.extend(_connection_key(eq.expr) for eq in signal)
             continue
         if len(ports) == 1:
             via = f" (exposed as {', '.join(exposed)}, but not connected outside)" if exposed \
@@ -389,14 +394,23 @@ def _connection_equations(root, leaves, infos) -> list[_Equation]:
         node_label = _node_label(labels)
         across = [E.Expr("sym", (), f"{lab}.{domain.across}") for lab in labels]
         through = [E.Expr("sym", (), f"{lab}.{domain.through}") for lab in labels]
+        first = across[0]
         for lab, a in zip(labels[1:], across[1:]):
-            equations.append(_Equation(a - across[0], node_label,
+            row = a - first
+            equations.append(_Equation(row, node_label,
                                        f"{node_label}: {domain.across} equal at {lab}"))
+            if keys is not None:    # ``a - b`` of two distinct names
+                keys.append((("connection", "sub"), (a.value, first.value), [a, first, row]))
         total = through[0]
+        nodes = [total]
         for q in through[1:]:
             total = total + q
+            nodes += (q, total)
         equations.append(_Equation(total, node_label,
                                    f"{node_label}: sum of {domain.through} is zero"))
+        if keys is not None:    # ``q1 + q2 + ... + qn`` summed from the left
+            keys.append((("connection", "sum", len(through)),
+                         tuple(q.value for q in through), nodes))
     return equations
 
 

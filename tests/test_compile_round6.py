@@ -169,3 +169,46 @@ def test_instances_kept_by_their_parameter_values():
     # sqrt(4)=2 and 1: b = 1 is special; sqrt(0.5) and 1.5 fine; sqrt(-1) is NaN;
     # sqrt(1) = 1 special; b = 0 special; b = inf
     assert ok.tolist() == [False, True, False, False, False, False]
+
+
+@pytest.mark.parametrize("build", ["rig", "machine", "wide"])
+def test_connection_provenance_is_read_off_the_equations(build):
+    """The provenance ``_connection_equations`` records with each equation is what
+    ``_connection_key`` reads off the equation: the same key, names and nodes."""
+    from bench_scaling import wide
+    from pvgraph.circuits.machine import build_machine
+    from pvgraph.circuits.rig import build_rig
+    c = {"rig": build_rig, "machine": build_machine, "wide": lambda: wide(12)}[build]()
+    leaves = K._flatten(c)
+    infos: dict = {}
+    for path, comp in leaves:
+        K._declare_variables(path, comp, infos, {})
+    keys: list = []
+    equations = K._connection_equations(c, leaves, infos, keys)
+    assert len(keys) == len(equations) > 10
+    for eq, got in zip(equations, keys):
+        want = K._connection_key(eq.expr)
+        assert (got is None) == (want is None), eq.label
+        if got is not None:
+            assert got[:2] == want[:2], eq.label
+            assert len(got[2]) == len(want[2]) and all(
+                a is b for a, b in zip(got[2], want[2])), eq.label
+
+
+def test_class_start_values_are_those_of_the_traced_view():
+    """Where a class's start values read no parameters, the compiler takes them from the
+    class: they are what ``start_values_traced`` gives, user overrides included."""
+    from pvgraph.circuits.machine import build_machine
+    from pvgraph.circuits.rig import build_rig
+    from pvgraph.components import FlowSource
+    checked = 0
+    for c in (build_rig(), build_machine()):
+        for path, comp in K._flatten(c):
+            fixed = K._class_starts(type(comp))
+            if fixed is None:
+                continue
+            assert {**fixed, **comp._start} == comp.start_values_traced(path, {}), path
+            checked += 1
+    assert checked > 10
+    assert K._class_starts(VolumeNode) is None      # its port pressure starts at p0
+    assert K._class_starts(FlowSource) is not None
