@@ -155,12 +155,11 @@ class Template:
         if self._build is None:
             self._prepare()
             self._build = self._builder()
-        names = [path + tail for tail in self._tails]
+        residuals, obs_exprs, conditions, self.last_nodes, found, self.last_rows, names = \
+            self._build(path, trace, registry, comp.params)
         self.last_names = (path, names)
         for k, how in self._structural:
             trace.structural.setdefault(names[k], f"{how} in {where}")
-        residuals, obs_exprs, conditions, self.last_nodes, found, self.last_rows = \
-            self._build(names, trace, registry, comp.params, path)
         observed = {nm: Observed(e, unit, desc)
                     for (nm, _, unit, desc), e in zip(self.observed, obs_exprs)}
         events = []
@@ -184,10 +183,11 @@ class Template:
                 for cl in self._classes]
 
     def _builder(self):
-        """A generated function ``(names, trace, registry, params, path) -> (residuals,
-        observed expressions, event conditions, each residual's nodes in post-order, the
-        names each residual reads (:func:`read_sets`), the row names of :meth:`row_names`)``
-        building the template's graphs for an instance: first the registry entries of the
+        """A generated function ``(path, trace, registry, params) -> (residuals, observed
+        expressions, event conditions, each residual's nodes in post-order, the names each
+        residual reads (:func:`read_sets`), the row names of :meth:`row_names`, the
+        instance's names)`` building the template's graphs for an instance: its names (the
+        template's tails after ``path``, see :meth:`_prepare`), the registry entries of the
         parameters read (in the order first read, as :class:`ParameterInfo`, values from
         ``params``), then one statement per node, leaves named from the instance's ``names``
         (see :meth:`_prepare`; parameter leaves shared per name through ``trace``, as
@@ -196,7 +196,8 @@ class Template:
         identity, only by value)."""
         num: dict[int, str] = {}
         kept = []
-        lines = ["def build(N, trace, registry, P, path):",
+        lines = ["def build(path, trace, registry, P):",
+                 "    N = [" + "".join(f"path + {tail!r}, " for tail in self._tails) + "]",
                  "    LV = trace._leaves",
                  "    VS = trace.values"]
         for k, field, unit, desc in self._reads:
@@ -258,7 +259,7 @@ class Template:
             (f"N[{k}], " if k is not None else f"{nm!r}, ") for k, nm in cl) + "), "
             for cl in self._classes) + "]"
         lines.append(f"    return ({tup(self.residuals)}, {tup([ob[1] for ob in self.observed])}, "
-                     f"{tup([ev[1] for ev in self.events])}, {nodes}, {found}, {rows})")
+                     f"{tup([ev[1] for ev in self.events])}, {nodes}, {found}, {rows}, N)")
         namespace = {"X": E.Expr, "K": kept, "PI": ParameterInfo, "V": _value}
         exec(compile("\n".join(lines), f"<template of {self.cls.__name__}>", "exec"),
              namespace)  # noqa: S102 - generated from the template's graph
@@ -478,6 +479,7 @@ def _same(a, b) -> bool:
 
 
 _FIELD_NAMES: dict = {}   # model class -> (field names, their values getter, all-float key)
+_FLOAT_ONLY = {float}
 
 
 def _shape_key(value):
@@ -496,7 +498,7 @@ def _shape_key(value):
             got = _FIELD_NAMES[cls] = (names, get, (cls,) + (float,) * len(names))
         _, get, all_float = got
         items = get(value)
-        if all(type(item) is float for item in items):
+        if set(map(type, items)) == _FLOAT_ONLY:
             return all_float
         out = [cls]
         for item in items:

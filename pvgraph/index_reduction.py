@@ -289,13 +289,17 @@ def reduce_index(equations, infos, subs, events, observed, given=None, incidence
             lv = E.leaves(eq.expr, ("sym", "der"))
             incidence.append(({v for op, v in lv if op == "sym"},
                               {v for op, v in lv if op == "der"}))
-    number, known = pos.__getitem__, pos.keys()
+    number = pos.__getitem__
     for syms, ders in incidence:
         # the common case (every name an unknown) in one pass, the same sets either way
-        inc_y.append(set(map(number, syms)) if known >= syms else
-                     {pos[v] for v in syms if v in pos})
-        inc_yp.append(set(map(number, ders)) if known >= ders else
-                      {pos[v] for v in ders if v in pos})
+        try:
+            inc_y.append(set(map(number, syms)))
+        except KeyError:
+            inc_y.append({pos[v] for v in syms if v in pos})
+        try:
+            inc_yp.append(set(map(number, ders)))
+        except KeyError:
+            inc_yp.append({pos[v] for v in ders if v in pos})
     differential = np.zeros(n, dtype=bool)
     differential[np.fromiter(itertools.chain.from_iterable(inc_yp), dtype=np.int64)] = True
     differentials = set(np.flatnonzero(differential).tolist())

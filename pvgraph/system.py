@@ -1317,10 +1317,11 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
         for k, g in enumerate(ev_groups):
             sources.append(g.generate(f"events_{k}", ev_labels, jacobian=False))
 
+    meta = list(map(operator.attrgetter("start", "nominal", "unit", "description"),
+                    map(infos.__getitem__, names)))
+    starts, nominals, units, descriptions = ([m[k] for m in meta] for k in range(4))
     system = System(
-        name, names, differential,
-        [infos[nm].start for nm in names], [infos[nm].nominal for nm in names],
-        [infos[nm].unit for nm in names], [infos[nm].description for nm in names], labels,
+        name, names, differential, starts, nominals, units, descriptions, labels,
         rows, cols, residual_fn, jac_fn,
         observed_fn, {nm: (observed[nm][1], observed[nm][2]) for nm in obs_names}, event_fn,
         events, mode_names, mode_start, subs, sources)
@@ -1554,6 +1555,7 @@ def _array_groups(exprs, array_rows, leaf_of=None, n_rows=None, shapes_of=None):
         return [], list(range(len(exprs)))
     min_group = 2 if array_rows is True else ARRAY_MIN_GROUP
     by_shape: dict = {}
+    of_object: dict = {}    # id(shape) -> its members (rows of one block share the object)
     scalar = []
     shapes = [codegen.row_shape(r, leaf_of) for r in exprs] if shapes_of is None else \
         shapes_of(exprs)
@@ -1561,7 +1563,10 @@ def _array_groups(exprs, array_rows, leaf_of=None, n_rows=None, shapes_of=None):
         if shape is None:
             scalar.append(i)
             continue
-        by_shape.setdefault(shape[0], []).append((i, shape[1]))
+        members = of_object.get(id(shape[0]))
+        if members is None:
+            members = of_object[id(shape[0])] = by_shape.setdefault(shape[0], [])
+        members.append((i, shape[1]))
     groups = []
     for members in by_shape.values():
         if len(members) < min_group:
