@@ -95,9 +95,10 @@ class Template:
         self.values = {field: _value(comp.params, field) for field, _ in self.structural}
         self.keep: set[int] = set()   # nodes an instance shares with the template
         self.verified = False
-        self._build = self._found = self._classes = None
+        self._build = self._classes = None
         self.last_nodes = None   # the nodes of each residual built last, in post-order
         self.last_names = None   # (path, names) of the instance built last
+        self.last_rows = None    # and its row_names
         for node in self.order:
             if node.op in ("interp", "interp_d") or (not node.args and
                                                      node.op not in _TEMPLATE_LEAVES):
@@ -134,7 +135,6 @@ class Template:
                        for field, _, unit, desc in self.reads]
         self._structural = [(slot(f"{self.path}.{field}")[0], how)
                             for field, how in self.structural]
-        self._found = [[(op,) + slot(nm) for op, nm in lv] for lv in self.found]
         self._classes = []
         for r in list(self.residuals) + [ev[1] for ev in self.events]:
             names = {}
@@ -155,12 +155,11 @@ class Template:
         if self._build is None:
             self._prepare()
             self._build = self._builder()
-        names = [path + tail for tail in self._tails]
+        residuals, obs_exprs, conditions, self.last_nodes, found, self.last_rows, names = \
+            self._build(path, trace, registry, comp.params)
         self.last_names = (path, names)
         for k, how in self._structural:
             trace.structural.setdefault(names[k], f"{how} in {where}")
-        residuals, obs_exprs, conditions, self.last_nodes = self._build(
-            names, trace, registry, comp.params, path)
         observed = {nm: Observed(e, unit, desc)
                     for (nm, _, unit, desc), e in zip(self.observed, obs_exprs)}
         events = []
@@ -168,8 +167,6 @@ class Template:
                 enumerate(zip(self.events, conditions)):
             action = None if no_action else _LazyAction(comp, path, k)
             events.append(EventSpec(ev_name, cond, direction, action, terminal, at_start))
-        found = [[(op, names[k] if k is not None else nm) for op, k, nm in lv]
-                 for lv in self._found]
         return residuals, _Traced(observed, events), found
 
     def row_names(self, path):
@@ -179,23 +176,28 @@ class Template:
         if self._classes is None:
             self._prepare()
         if self.last_names is not None and self.last_names[0] == path:
-            names = self.last_names[1]
+            return self.last_rows
         else:
             names = [path + tail for tail in self._tails]
         return [tuple([names[k] if k is not None else nm for k, nm in cl])
                 for cl in self._classes]
 
     def _builder(self):
-        """A generated function ``(names, trace, registry, params, path) -> (residuals,
-        observed expressions, event conditions, each residual's nodes in post-order)``
-        building the template's graphs for an instance: first the registry entries of the
+        """A generated function ``(path, trace, registry, params) -> (residuals, observed
+        expressions, event conditions, each residual's nodes in post-order, the names each
+        residual reads (:func:`read_sets`), the row names of :meth:`row_names`, the
+        instance's names)`` building the template's graphs for an instance: its names (the
+        template's tails after ``path``, see :meth:`_prepare`), the registry entries of the
         parameters read (in the order first read, as :class:`ParameterInfo`, values from
         ``params``), then one statement per node, leaves named from the instance's ``names``
         (see :meth:`_prepare`; parameter leaves shared per name through ``trace``, as
-        :meth:`pvgraph.expr.ParameterTrace.leaf` makes them)."""
+        :meth:`pvgraph.expr.ParameterTrace.leaf` makes them; constants are the template's
+        nodes, shared by all instances: nothing downstream tells constant nodes apart by
+        identity, only by value)."""
         num: dict[int, str] = {}
         kept = []
-        lines = ["def build(N, trace, registry, P, path):",
+        lines = ["def build(path, trace, registry, P):",
+                 "    N = [" + "".join(f"path + {tail!r}, " for tail in self._tails) + "]",
                  "    LV = trace._leaves",
                  "    VS = trace.values"]
         for k, field, unit, desc in self._reads:
@@ -234,8 +236,8 @@ class Template:
                           f"    if {var} is None:",
                           f"        {var} = LV[{full}] = X('param', (), {full})",
                           f"        VS.setdefault({full}, registry[{full}].value)"]
-            elif op == "const":
-                lines.append(f"    {var} = X('const', (), K[{len(kept)}].value)")
+            elif op == "const":     # a number: the template's node itself (never renamed)
+                num[id(node)] = f"K[{len(kept)}]"
                 kept.append(node)
             else:
                 lines.append(f"    {var} = X({op!r}, (), None)")
@@ -245,8 +247,19 @@ class Template:
         # and each residual's nodes in its own post-order (for substituting into it later)
         nodes = "(" + "".join("[" + ", ".join(num[id(n)] for n in E.postorder([r])) + "], "
                               for r in self.residuals) + ")"
+        # the names of the variables and derivatives each residual reads (two sets, see
+        # read_sets) and the names of each row (see row_names), as literals
+
+        def names_set(lv, kind):
+            items = [named(nm) for op, nm in lv if op == kind]
+            return "{" + ", ".join(items) + "}" if items else "set()"
+        found = "[" + "".join(f"({names_set(lv, 'sym')}, {names_set(lv, 'der')}), "
+                              for lv in self.found) + "]"
+        rows = "[" + "".join("(" + "".join(
+            (f"N[{k}], " if k is not None else f"{nm!r}, ") for k, nm in cl) + "), "
+            for cl in self._classes) + "]"
         lines.append(f"    return ({tup(self.residuals)}, {tup([ob[1] for ob in self.observed])}, "
-                     f"{tup([ev[1] for ev in self.events])}, {nodes})")
+                     f"{tup([ev[1] for ev in self.events])}, {nodes}, {found}, {rows}, N)")
         namespace = {"X": E.Expr, "K": kept, "PI": ParameterInfo, "V": _value}
         exec(compile("\n".join(lines), f"<template of {self.cls.__name__}>", "exec"),
              namespace)  # noqa: S102 - generated from the template's graph
@@ -351,7 +364,8 @@ class Templates:
         self.last = None
 
     def trace(self, comp, path, registry, trace):
-        """``(residuals, traced, found)`` of ``comp``: built from a template or traced."""
+        """``(residuals, traced, found)`` of ``comp``: built from a template or traced
+        (``found``: per residual, the names it reads, as :func:`read_sets` gives them)."""
         self.last = None
         cls = type(comp)
         key = None
@@ -373,7 +387,7 @@ class Templates:
                     tpl.verified = True
                 else:
                     self.off.add(cls)
-                return residuals, v, [E.leaves(r, ("sym", "der")) for r in residuals]
+                return residuals, v, [read_sets(r) for r in residuals]
         residuals, v, reads, structural, tables = _record(comp, path, registry, trace)
         tpl = Template(comp, path, residuals, v, reads, structural, where, registry)
         if tpl.usable and not tables:
@@ -381,7 +395,7 @@ class Templates:
             self.last = (tpl, path)
         else:
             self.off.add(cls)
-        return residuals, v, tpl.found
+        return residuals, v, [_split(lv) for lv in tpl.found]
 
     def _class_ok(self, cls) -> bool:
         ok = self._code_ok.get(cls)
@@ -414,7 +428,16 @@ def _record(comp, path, registry, trace):
 
 def _plain(comp, path, registry):
     residuals, v = comp.trace(path, registry)
-    return residuals, v, [E.leaves(r, ("sym", "der")) for r in residuals]
+    return residuals, v, [read_sets(r) for r in residuals]
+
+
+def read_sets(row) -> tuple[set, set]:
+    """``(names of the variables, names of the derivatives)`` that ``row`` reads."""
+    return _split(E.leaves(row, ("sym", "der")))
+
+
+def _split(leaves) -> tuple[set, set]:
+    return {nm for op, nm in leaves if op == "sym"}, {nm for op, nm in leaves if op == "der"}
 
 
 def _reads_instance(cls) -> bool:
@@ -456,6 +479,7 @@ def _same(a, b) -> bool:
 
 
 _FIELD_NAMES: dict = {}   # model class -> (field names, their values getter, all-float key)
+_FLOAT_ONLY = {float}
 
 
 def _shape_key(value):
@@ -474,14 +498,20 @@ def _shape_key(value):
             got = _FIELD_NAMES[cls] = (names, get, (cls,) + (float,) * len(names))
         _, get, all_float = got
         items = get(value)
-        if all(type(item) is float for item in items):
+        if set(map(type, items)) == _FLOAT_ONLY:
             return all_float
         out = [cls]
         for item in items:
-            item = float if type(item) is float else _shape_key(item)
-            if item is None:
-                return None
-            out.append(item)
+            kind = type(item)
+            if kind is float:
+                out.append(float)
+            elif item is None or kind is bool or kind is int or kind is str:
+                out.append((kind, item))    # as below, without the call
+            else:
+                item = _shape_key(item)
+                if item is None:
+                    return None
+                out.append(item)
         return tuple(out)
     if isinstance(value, float):
         return float

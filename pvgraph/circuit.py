@@ -325,6 +325,7 @@ class Circuit:
                 return system
         try:
             system = compile_circuit(self, **options)
+            known = system.__dict__.pop("_known_roles", None)
         except StructureError as exc:
             loose = [i for i in _pressure_islands(self) if not i["volumes"]]
             if loose:
@@ -334,7 +335,7 @@ class Circuit:
                 raise StructureError(f"{_no_reference_message(self, loose)}\n(The structural "
                                      f"check of the compiler: {found})") from None
             raise
-        floating = [i for i in _pressure_islands(self) if len(i["volumes"]) > 1]
+        floating = [i for i in _pressure_islands(self, known) if len(i["volumes"]) > 1]
         if floating:
             names = "; ".join(", ".join(sorted(i["components"])[:4]) for i in floating)
             warnings.warn(PlausibilityWarning(
@@ -521,94 +522,134 @@ def _leaf_port(ref: PortRef):
     return owner, name
 
 
-def _pressure_islands(circuit: Circuit) -> list[dict]:
+def _pressure_islands(circuit: Circuit, known: dict | None = None) -> list[dict]:
     """Hydraulic networks without a pressure reference: ``{"components", "volumes"}`` each.
 
     Ports joined by a connection are one network; so are two ports of one component when an
     equation holds both their flows (a flow path: an orifice, a valve edge). A port fixes the
     pressure level when its component's equations use its pressure but never its flow (a
     Tank, a pressure source); a volume is a port whose pressure's time derivative appears.
+    ``known``: the port roles of components by path, where the compiler read them from its
+    templates (:func:`pvgraph._roles.template_roles`); the others are traced here.
     """
     # the traced graphs are acyclic and freed by reference counting (as in the compiler)
     enabled = gc.isenabled()
     gc.disable()
     try:
-        return _islands(circuit)
+        return _islands(circuit, known or {})
     finally:
         if enabled:
             from .compiler import resume_gc
             resume_gc()
 
 
-def _islands(circuit: Circuit) -> list[dict]:
+def _islands(circuit: Circuit, known: dict) -> list[dict]:
+    import numpy as np
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
     from .component import HYDRAULIC
 
     leaves = _leaves(circuit)
-    path_of = {id(c): p for p, c in leaves}
-    parent: dict[tuple, tuple] = {}
+    # hydraulic ports numbered in the order of the leaves, each leaf's consecutively; the
+    # networks are the connected components of the graph of connections and flow paths
+    index: dict[tuple, int] = {}
+    ports: list[tuple] = []     # (path, port name)
+    hyd_of: dict = {}           # class -> its hydraulic ports
+    local: dict = {}            # (class, id(roles)) -> roles as offsets (see below)
+    kinds: list = []            # per leaf with hydraulic ports: its local roles ...
+    bases: list = []            # ... and the number of its first port
+    seen: dict = {}   # (class, parameter values) -> the ports' roles, for instances alike
+    shared: dict = {}  # class -> [instances traced, instances that took another's roles]
     for path, comp in leaves:
-        for pname, port in comp.ports.items():
-            if port.domain is HYDRAULIC:
-                parent[(path, pname)] = (path, pname)
-
-    def find(a):
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
-    def join(a, b):
-        parent[find(a)] = find(b)
+        cls = type(comp)
+        hyd = hyd_of.get(cls)
+        if hyd is None:
+            hyd = hyd_of[cls] = [n for n, pt in comp.ports.items() if pt.domain is HYDRAULIC]
+        if not hyd:
+            continue
+        cid, base = id(comp), len(ports)
+        for pname in hyd:
+            index[(cid, pname)] = len(ports)
+            ports.append((path, pname))
+        roles = known.get(path)
+        if roles is None:
+            roles = _shared_roles(comp, path, hyd, seen, shared)
+        key = (cls, id(roles))
+        got = local.get(key)
+        if got is None:
+            at = {n: k for k, n in enumerate(hyd)}
+            paths, fixing, vols = roles
+            pairs = [(at[a], at[b]) for flows in paths for a, b in zip(flows, flows[1:])]
+            got = local[key] = (len(local), roles, pairs, [at[n] for n in fixing],
+                                [at[n] for n in vols])
+        kinds.append(got[0])
+        bases.append(base)
+    ea, eb = [], []
 
     def walk(node):
         for refs in node._connections:
             ends = []
             for r in refs:
-                if r.port.domain is HYDRAULIC:
-                    owner, pname = _leaf_port(r)
-                    ends.append((path_of[id(owner)], pname))
-            for a, b in zip(ends, ends[1:]):
-                join(a, b)
+                owner, pname = _leaf_port(r)
+                k = index.get((id(owner), pname))
+                if k is not None:       # a hydraulic port
+                    ends.append(k)
+            ea.extend(ends[:-1])
+            eb.extend(ends[1:])
         for child in node._components.values():
             if isinstance(child, Circuit):
                 walk(child)
     walk(circuit)
-    refs, volumes = set(), set()
-    seen: dict = {}   # (class, parameter values) -> the ports' roles, for instances alike
-    shared: dict = {}  # class -> [instances traced, instances that took another's roles]
-    for path, comp in leaves:
-        hyd = [n for n, pt in comp.ports.items() if pt.domain is HYDRAULIC]
-        if not hyd:
-            continue
-        count = shared.setdefault(type(comp), [0, 0])
-        # a class whose instances all differ so far is not keyed any more (keying costs)
-        key = _alike(comp) if count[1] or count[0] < _KEYED_UNSHARED else None
-        roles = seen.get(key) if key is not None else None
-        if roles is None:
-            roles = _port_roles(comp, path, hyd)
-            count[0] += 1
-            if key is not None:
-                seen[key] = roles
-        else:
-            count[1] += 1
-        paths, fixing, vols = roles
-        for flows in paths:
-            for a, b in zip(flows, flows[1:]):
-                join((path, a), (path, b))
-        refs.update((path, n) for n in fixing)
-        volumes.update((path, n) for n in vols)
-    islands: dict[tuple, dict] = {}
-    for node in parent:
-        top = find(node)
-        island = islands.get(top)
-        if island is None:
-            island = islands[top] = {"components": set(), "volumes": set(), "ref": False}
-        island["components"].add(node[0])
-        if node in volumes:
-            island["volumes"].add(node)
-        if node in refs:
-            island["ref"] = True
-    return [i for i in islands.values() if not i["ref"]]
+    n = len(ports)
+    kinds_a = np.asarray(kinds, dtype=np.int64)
+    bases_a = np.asarray(bases, dtype=np.int64)
+    ref = np.zeros(n, dtype=bool)
+    vol = np.zeros(n, dtype=bool)
+    rows, cols = [np.asarray(ea, dtype=np.int64)], [np.asarray(eb, dtype=np.int64)]
+    for k, _, pairs, fixing, vols in local.values():
+        at = bases_a[kinds_a == k]
+        for a, b in pairs:
+            rows.append(at + a)
+            cols.append(at + b)
+        for a in fixing:
+            ref[at + a] = True
+        for a in vols:
+            vol[at + a] = True
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    # the networks in the order of their first port; those with a reference dropped
+    _, first = np.unique(label, return_index=True)
+    has_ref = np.zeros(len(first), dtype=bool)
+    has_ref[label[ref]] = True
+    loose = np.flatnonzero(~has_ref[label])         # the ports of those networks
+    loose = loose[np.argsort(label[loose], kind="stable")]
+    cuts = np.flatnonzero(np.diff(label[loose])) + 1
+    out = []
+    for members in sorted(np.split(loose, cuts) if len(loose) else [],
+                          key=lambda m: first[label[m[0]]]):
+        out.append({"components": {ports[k][0] for k in members},
+                    "volumes": {ports[k] for k in members if vol[k]}, "ref": False})
+    return out
+
+
+def _shared_roles(comp, path, hyd, seen, shared):
+    """:func:`_port_roles` of ``comp``, or those of an instance traced before whose class and
+    parameter values are its own (``seen``: by that key; ``shared``: per class, instances
+    traced and instances that took another's roles)."""
+    count = shared.setdefault(type(comp), [0, 0])
+    # a class whose instances all differ so far is not keyed any more (keying costs)
+    key = _alike(comp) if count[1] or count[0] < _KEYED_UNSHARED else None
+    roles = seen.get(key) if key is not None else None
+    if roles is None:
+        roles = _port_roles(comp, path, hyd)
+        count[0] += 1
+        if key is not None:
+            seen[key] = roles
+    else:
+        count[1] += 1
+    return roles
 
 
 _KEYED_UNSHARED = 32
@@ -660,6 +701,21 @@ def _port_roles(comp, path, hyd):
         residuals, _ = comp.trace(path)
     except Exception:           # the compiler reports a component that cannot trace
         return [], list(hyd), []
+    return _roles_of(residuals, comp, path, hyd)
+
+
+def _hydraulic_ports(comp) -> list:
+    from .component import HYDRAULIC
+    return [n for n, pt in comp.ports.items() if pt.domain is HYDRAULIC]
+
+
+def _roles_of(residuals, comp, path, hyd=None):
+    """:func:`_port_roles` read from ``residuals`` (traced for ``comp`` at ``path``); None
+    for a component without hydraulic ports."""
+    if hyd is None:
+        hyd = _hydraulic_ports(comp)
+        if not hyd:
+            return None
     used = set()
     paths = []
     # an internal flow (a line's q) carries flow between the ports whose equations hold it

@@ -30,7 +30,6 @@ alias elimination, each volume contributes its own flow unknown, and the DAE sta
 
 from __future__ import annotations
 
-import contextlib
 import gc
 import itertools
 import zlib
@@ -41,8 +40,9 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import maximum_bipartite_matching
 
 from . import expr as E
-from ._templates import Templates
-from .circuit import Circuit
+from ._roles import template_roles
+from ._templates import Templates, read_sets
+from .circuit import Circuit, _hydraulic_ports, _port_roles, _roles_of
 from .component import SIGNAL, Component
 from .errors import CircuitError, ConnectionError_, StructureError
 
@@ -142,17 +142,21 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     # their names exchanged (see _Provenance)
     prov = _Provenance()
     var_specs: dict = {}   # component class -> its variables (see _declare_variables)
-    # the math functions stay symbolic over the whole loop (each component's trace then only
-    # counts itself in and out instead of patching and restoring them)
-    with _symbolic_math():
+    of_template: dict = {}   # template -> [(path, component) built from it]
+    # the parameter trace is active over the whole loop (the start values read numbers only);
+    # the math functions of the vocabulary stay symbolic throughout
+    with trace:
         for path, comp in leaves:
             _declare_variables(path, comp, infos, registry, var_specs)
             trace.where = f"{type(comp).__name__}.equations of {path!r}"
-            with trace:
-                residuals, v, leaves_read = templates.trace(comp, path, registry, trace)
+            residuals, v, leaves_read = templates.trace(comp, path, registry, trace)
             found.extend(leaves_read)
             if templates.last is not None:
                 tpl, at = templates.last
+                built = of_template.get(tpl)
+                if built is None:
+                    built = of_template[tpl] = []
+                built.append((path, comp))
                 rows = list(residuals) + [ev.condition for ev in v.events]
                 nodes = tpl.last_nodes or ()
                 prov.add_rows(rows, prov.template_keys(tpl, len(rows)), tpl.row_names(at),
@@ -169,6 +173,8 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
                 mode_start.append(float(mstart))
 
     del templates
+    roles = template_roles(of_template, registry, _roles_of, _traced_roles)
+    del of_template
     from .circuit import boundary_flows
     for name, (inner, unit, text) in boundary_flows(circuit).items():
         total = E.Expr("sym", (), inner[0])
@@ -176,20 +182,23 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
             total = total + E.Expr("sym", (), other)
         observed[name] = (total, unit, text)
     n_component = len(equations)
-    equations.extend(_connection_equations(circuit, leaves, infos))
-    for eq in equations[n_component:]:
-        got = _connection_key(eq.expr)
+    keys: list = []
+    equations.extend(_connection_equations(circuit, leaves, infos, keys))
+    for eq, got in zip(equations[n_component:], keys):
         if got is not None:
             prov.add(eq.expr, *got)
-            # the leaves of ``a - b`` or ``q1 + ... + qn``: its distinct names, in order
-            found.append([("sym", nm) for nm in got[1]])
+            found.append((set(got[1]), set()))   # ``a - b`` or ``q1 + ... + qn``
         else:
-            found.append(E.leaves(eq.expr, ("sym", "der")))
+            found.append(read_sets(eq.expr))
     _check_symbols(equations, found, infos, set(mode_names))
 
-    for name, info in registry.items():
-        trace.values.setdefault(name, info.value)
-        info.structural = trace.structural.get(name, "")
+    # every parameter has its value (those read as leaves have theirs) and, where the
+    # equations made it a number, the reason (the others keep the default "")
+    values = trace.values
+    for name in registry.keys() - values.keys():
+        values[name] = registry[name].value
+    for name in trace.structural.keys() & registry.keys():
+        registry[name].structural = trace.structural[name]
 
     subs: dict[str, tuple] = {}
     incidence = None
@@ -209,22 +218,18 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
                           mode_start, parameters=registry, tables=trace.tables,
                           array_rows=array_rows, provenance=prov)
     system._circuit = circuit
+    system._known_roles = roles     # for the no-reference check (Circuit.compile takes them)
     system._components = dict(leaves)
     system._models = {path: comp.params for path, comp in leaves}
     return reduction.attach(system)
 
 
+def _traced_roles(comp, path):
+    """The port roles of ``comp`` traced with numbers (see :mod:`pvgraph._roles`)."""
+    return _port_roles(comp, path, _hydraulic_ports(comp))
+
+
 # 1. flatten ---------------------------------------------------------------------------------
-
-@contextlib.contextmanager
-def _symbolic_math():
-    """The ``math`` functions of the expression vocabulary symbolic (as while tracing)."""
-    E._patch_math()
-    try:
-        yield
-    finally:
-        E._unpatch_math()
-
 
 def _flatten(circuit: Circuit) -> list[tuple[str, Component]]:
     out = []
@@ -255,17 +260,23 @@ def _rel_path(root: Circuit, owner) -> str:
 def _declare_variables(path, comp, infos, registry, specs=None):
     """Enter the variables of ``comp`` (ports' across and through variables, then its own) in
     ``infos`` with their start values. ``specs``: a dict kept over one compilation, holding
-    each class's list of variables (see :func:`_variable_specs`)."""
-    starts = comp.start_values_traced(path, registry)
-    explicit_user = comp._start
+    each class's list of variables (see :func:`_variable_specs`) and, for a class whose start
+    values read no parameters, those of the class."""
     cls = type(comp)
-    # keys of the parameter-derived start values (none where the class keeps the default)
-    from_params = comp.starts(comp.params) if cls.starts is not Component.starts else ()
-    spec = None if specs is None else specs.get(cls)
-    if spec is None:
-        spec = _variable_specs(cls)
+    got = None if specs is None else specs.get(cls)
+    if got is None:
+        got = (_variable_specs(cls), _class_starts(cls))
         if specs is not None:
-            specs[cls] = spec
+            specs[cls] = got
+    spec, fixed = got
+    explicit_user = comp._start
+    if fixed is not None:   # as start_values_traced gives them, no parameter read
+        starts = {**fixed, **explicit_user} if explicit_user else fixed
+        from_params = ()
+    else:
+        starts = comp.start_values_traced(path, registry)
+        # keys of the parameter-derived start values (none where the class keeps the default)
+        from_params = comp.starts(comp.params) if cls.starts is not Component.starts else ()
     for suffix, unit, key, nominal, desc, how in spec:
         name = path + suffix
         if how == 1:      # a through variable: starts at zero, never given
@@ -274,6 +285,16 @@ def _declare_variables(path, comp, infos, registry, specs=None):
         start = float(starts.get(key, 0.0)) if how == 0 else float(starts[key])
         prio = 2 if key in explicit_user else 1 if key in from_params else 0
         infos[name] = VarInfo(name, unit, start, nominal, desc, path, prio)
+
+
+def _class_starts(cls):
+    """The start values of every instance of ``cls`` before the user's, where they read no
+    parameters (no parameter-derived ``starts``, constant variable starts), else None."""
+    if cls.starts is not Component.starts or \
+            cls.start_values_traced is not Component.start_values_traced or \
+            any(callable(var.start) for var in cls.variables.values()):
+        return None
+    return {name: var.start for name, var in cls.variables.items()}
 
 
 def _variable_specs(cls) -> list:
@@ -297,7 +318,9 @@ def _variable_specs(cls) -> list:
     return out
 
 
-def _connection_equations(root, leaves, infos) -> list[_Equation]:
+def _connection_equations(root, leaves, infos, keys=None) -> list[_Equation]:
+    """The equations of the connection sets. ``keys``, a list, receives each equation's
+    provenance (as :func:`_connection_key` reads it off the equation)."""
     # ports numbered in the order met; connection sets by union-find over those numbers,
     # listed in the order of their first port (as a graph's connected components are)
     index: dict[tuple, int] = {}
@@ -363,7 +386,10 @@ def _connection_equations(root, leaves, infos) -> list[_Equation]:
                                    f"joins ports of one domain only.")
         domain = specs[0].domain
         if domain is SIGNAL:
-            equations.extend(_signal_set(labels, specs, exposed))
+            signal = _signal_set(labels, specs, exposed)
+            equations.extend(signal)
+            if keys is not None:
+                keys.extend(_connection_key(eq.expr) for eq in signal)
             continue
         if len(ports) == 1:
             via = f" (exposed as {', '.join(exposed)}, but not connected outside)" if exposed \
@@ -375,14 +401,23 @@ def _connection_equations(root, leaves, infos) -> list[_Equation]:
         node_label = _node_label(labels)
         across = [E.Expr("sym", (), f"{lab}.{domain.across}") for lab in labels]
         through = [E.Expr("sym", (), f"{lab}.{domain.through}") for lab in labels]
+        first = across[0]
         for lab, a in zip(labels[1:], across[1:]):
-            equations.append(_Equation(a - across[0], node_label,
+            row = a - first
+            equations.append(_Equation(row, node_label,
                                        f"{node_label}: {domain.across} equal at {lab}"))
+            if keys is not None:    # ``a - b`` of two distinct names
+                keys.append((("connection", "sub"), (a.value, first.value), [a, first, row]))
         total = through[0]
+        nodes = [total]
         for q in through[1:]:
             total = total + q
+            nodes += (q, total)
         equations.append(_Equation(total, node_label,
                                    f"{node_label}: sum of {domain.through} is zero"))
+        if keys is not None:    # ``q1 + q2 + ... + qn`` summed from the left
+            keys.append((("connection", "sum", len(through)),
+                         tuple(q.value for q in through), nodes))
     return equations
 
 
@@ -444,13 +479,14 @@ def _signal_set(labels, specs, exposed):
 
 
 def _check_symbols(equations, found, infos, modes):
-    """Every symbol an equation reads is a variable or a mode (``found``: their leaves)."""
-    pairs = set(itertools.chain.from_iterable(found))
-    if {nm for _, nm in pairs} - infos.keys() <= modes and \
-            not any(("der", m) in pairs for m in modes):
+    """Every symbol an equation reads is a variable or a mode (``found``: per equation, the
+    names of the variables and derivatives it reads)."""
+    syms = set().union(*[s for s, _ in found])
+    ders = set().union(*[d for _, d in found])
+    if (syms | ders) - infos.keys() <= modes and ders.isdisjoint(modes):
         return    # all is well (else the loop below names the first equation at fault)
-    for eq, leaves in zip(equations, found):
-        for op, name in leaves:
+    for eq in equations:
+        for op, name in E.leaves(eq.expr, ("sym", "der")):
             if name not in infos and name not in modes:
                 raise CircuitError(f"{eq.label} uses the unknown variable {name!r}")
             if op == "der" and name in modes:
@@ -561,8 +597,13 @@ def _kzero(x):
 
 
 def _kadd(a, b):
-    if isinstance(a, float) and isinstance(b, float):
+    fa, fb = isinstance(a, float), isinstance(b, float)
+    if fa and fb:
         return a + b
+    if fa and a == 0.0 and b.op != "const":     # 0 + b folds to b (no node made for the 0)
+        return b
+    if fb and b == 0.0 and a.op != "const":
+        return a
     return _knorm(E.as_expr(a) + E.as_expr(b))
 
 
@@ -571,14 +612,22 @@ def _kneg(a):
 
 
 def _kmul(a, b):
-    if isinstance(a, float) and isinstance(b, float):
+    fa, fb = isinstance(a, float), isinstance(b, float)
+    if fa and fb:
         return a * b
+    if fa and a == 1.0 and b.op != "const":     # 1 * b folds to b (no node made for the 1)
+        return b
+    if fb and b == 1.0 and a.op != "const":
+        return a
     return _knorm(E.as_expr(a) * E.as_expr(b))
 
 
 def _kdiv(a, b):
-    if isinstance(a, float) and isinstance(b, float):
+    fb = isinstance(b, float)
+    if fb and isinstance(a, float):
         return a / b
+    if fb and (b == 1.0 or b == -1.0) and a.op != "const":   # folds to a or -a
+        return a if b == 1.0 else _knorm(-a)
     return _knorm(E.as_expr(a) / E.as_expr(b))
 
 
@@ -625,7 +674,8 @@ class _Provenance:
     """
 
     def __init__(self):
-        self.rows: dict[int, tuple] = {}   # id(row) -> (row, key number, names, nodes or None)
+        self.rows: dict[int, tuple] = {}   # id(row) -> (row, key number, names)
+        self.nodes: dict[int, list] = {}   # id(row) -> its nodes in post-order, where known
         self.keys: dict = {}
         self._in_token: dict[int, tuple] = {}
         self._builders: dict[int, object] = {}   # key number -> builder, candidate or False
@@ -638,7 +688,9 @@ class _Provenance:
         return k
 
     def add(self, row, key, names, nodes=None):
-        self.rows[id(row)] = (row, self.number(key), names, nodes)
+        self.rows[id(row)] = (row, self.number(key), names)
+        if nodes is not None:
+            self.nodes[id(row)] = nodes
 
     def template_keys(self, tpl, n) -> list:
         """The key numbers of the rows ``(tpl, 0)``, ..., ``(tpl, n - 1)``."""
@@ -651,15 +703,13 @@ class _Provenance:
         """:meth:`add` of each row with its key number, names and nodes (the first
         ``len(nodes)`` rows have theirs)."""
         got = self.rows
-        n = len(nodes)
-        for k, (row, key, nm) in enumerate(zip(rows, numbers, names)):
-            got[id(row)] = (row, key, nm, nodes[k] if k < n else None)
+        for row, key, nm in zip(rows, numbers, names):
+            got[id(row)] = (row, key, nm)
+        self.nodes.update(zip(map(id, rows), nodes))
 
     def forget_nodes(self):
         """Drop the rows' node lists (needed while substituting only)."""
-        for k, p in self.rows.items():
-            if p[3] is not None:
-                self.rows[k] = p[:3] + (None,)
+        self.nodes = {}
 
     def get(self, row):
         """``(key number, names)`` of ``row``, or None."""
@@ -672,7 +722,8 @@ class _Provenance:
         p = self.rows.get(id(old))
         if p is None or p[0] is not old:
             return _apply(old, subs, resolve)
-        _, key, names, old_nodes = p
+        _, key, names = p
+        old_nodes = self.nodes.pop(id(old), None)
         pattern = []
         cls: dict[str, int] = {}
         out = []
@@ -711,10 +762,11 @@ class _Provenance:
             if old_nodes is None:
                 old_nodes = E.postorder([old])
             new, nodes = state(names, old_nodes)
-            self.rows[id(new)] = (new, k, names, nodes)
+            self.rows[id(new)] = (new, k, names)
+            self.nodes[id(new)] = nodes
             return new
         new = _apply(old, subs, resolve)
-        self.rows[id(new)] = (new, k, names, None)
+        self.rows[id(new)] = (new, k, names)
         # the first row of a key is substituted as it is; the second gives a candidate
         # builder (a key met once costs no builder), the third checks it
         if state is None:
@@ -843,14 +895,13 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
     The unknown removed must have a constant coefficient, so that no parameter value can make
     the elimination divide by zero; the other coefficient and the offset may be parametric.
     ``values`` holds the parameters' compile-time values (for carrying start values);
-    ``found`` the ``(op, name)`` leaves of each equation, if known. ``incidence``, a list,
-    receives ``(values read, derivatives read)`` (sets of names) of each equation returned.
+    ``found`` the names of the values and of the derivatives each equation reads (two sets
+    per equation, taken over), if known. ``incidence``, a list, receives ``(values read,
+    derivatives read)`` (sets of names) of each equation returned.
     """
     if found is None:
-        found = [E.leaves(eq.expr, ("sym", "der")) for eq in equations]
-    used_der: set[str] = set()
-    for leaves in found:
-        used_der.update(name for op, name in leaves if op == "der")
+        found = [read_sets(eq.expr) for eq in equations]
+    used_der: set[str] = set().union(*[d for _, d in found])
 
     def num(x):
         return x if isinstance(x, float) else E.evaluate(x, values)
@@ -967,11 +1018,8 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
     # skipped: each pass costs the equations that changed, not the circuit. Each equation's
     # values and derivatives read are kept (exactly, or a superset read again where it
     # matters) for the affine test and the incidence of the later stages.
-    remaining = []
-    for eq, leaves in zip(equations, found):
-        syms = {nm for op, nm in leaves if op == "sym"}
-        ders = {nm for op, nm in leaves if op == "der"}
-        remaining.append([eq, eq.expr, syms, ders, True, True])
+    remaining = [[eq, eq.expr, syms, ders, True, True]
+                 for eq, (syms, ders) in zip(equations, found)]
     other = None
     changed = True
     while changed:

@@ -281,7 +281,7 @@ def reduce_index(equations, infos, subs, events, observed, given=None, incidence
     n = len(unknowns)
     if len(equations) != n or n == 0:
         return equations, events, observed, IndexReduction()
-    pos = {nm: i for i, nm in enumerate(unknowns)}
+    pos = dict(zip(unknowns, range(n)))
     inc_y, inc_yp = [], []
     if incidence is None:
         incidence = []
@@ -289,12 +289,21 @@ def reduce_index(equations, infos, subs, events, observed, given=None, incidence
             lv = E.leaves(eq.expr, ("sym", "der"))
             incidence.append(({v for op, v in lv if op == "sym"},
                               {v for op, v in lv if op == "der"}))
+    number = pos.__getitem__
     for syms, ders in incidence:
-        inc_y.append({pos[v] for v in syms if v in pos})
-        inc_yp.append({pos[v] for v in ders if v in pos})
+        # the common case (every name an unknown) in one pass, the same sets either way
+        try:
+            inc_y.append(set(map(number, syms)))
+        except KeyError:
+            inc_y.append({pos[v] for v in syms if v in pos})
+        try:
+            inc_yp.append(set(map(number, ders)))
+        except KeyError:
+            inc_yp.append({pos[v] for v in ders if v in pos})
     differential = np.zeros(n, dtype=bool)
     differential[np.fromiter(itertools.chain.from_iterable(inc_yp), dtype=np.int64)] = True
-    highest = [b | {j for j in a if not differential[j]} for a, b in zip(inc_y, inc_yp)]
+    differentials = set(np.flatnonzero(differential).tolist())
+    highest = [b | (a - differentials) for a, b in zip(inc_y, inc_yp)]
     if _perfect(highest, n):
         return equations, events, observed, IndexReduction()
     if not _perfect([a | b for a, b in zip(inc_y, inc_yp)], n):
@@ -304,7 +313,7 @@ def reduce_index(equations, infos, subs, events, observed, given=None, incidence
 
 def _perfect(cols, n):
     rows = np.repeat(np.arange(len(cols)), [len(c) for c in cols])
-    flat = np.fromiter((j for c in cols for j in c), dtype=np.int64, count=len(rows))
+    flat = np.fromiter(itertools.chain.from_iterable(cols), dtype=np.int64, count=len(rows))
     m = csr_matrix((np.ones(len(rows)), (rows, flat)), shape=(len(cols), n))
     match = maximum_bipartite_matching(m, perm_type="column")
     return bool(np.all(match >= 0))
@@ -683,7 +692,7 @@ def _components(eqs, cand, inc):
 def _matching(cols, n_var):
     """Equation -> column maximum matching (-1 where unmatched)."""
     rows = np.repeat(np.arange(len(cols)), [len(c) for c in cols])
-    flat = np.fromiter((j for c in cols for j in c), dtype=np.int64, count=len(rows))
+    flat = np.fromiter(itertools.chain.from_iterable(cols), dtype=np.int64, count=len(rows))
     m = csr_matrix((np.ones(len(rows)), (rows, flat)), shape=(len(cols), max(n_var, 1)))
     return maximum_bipartite_matching(m, perm_type="column")
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import difflib
+import itertools
 import math
 import operator
 import threading
@@ -110,7 +111,7 @@ class System:
         self.name = name
         self.names = names
         self.n = len(names)
-        self.index = {nm: i for i, nm in enumerate(names)}
+        self.index = dict(zip(names, range(len(names))))
         self.differential = np.asarray(differential, dtype=bool)
         self.algebraic = ~self.differential
         self.y0 = np.asarray(y0, dtype=float)
@@ -869,7 +870,9 @@ class System:
         try:
             for path, model in merged.items():
                 comps[path].params = model
-            return compile_circuit(self._circuit)
+            system = compile_circuit(self._circuit)
+            system.__dict__.pop("_known_roles", None)   # needed by Circuit.compile only
+            return system
         finally:
             for path, model in saved.items():
                 comps[path].params = model
@@ -1077,12 +1080,12 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     from .compiler import check_structure
 
     parameters = dict(parameters or {})
-    pindex = {nm: k for k, nm in enumerate(parameters)}
+    pindex = dict(zip(parameters, range(len(parameters))))
     tables = list(tables)
     for j, tab in enumerate(tables):  # runtime tables follow the parameters in P
         tab.slot = len(parameters) + j
     names = [nm for nm in infos if nm not in subs]
-    index = {nm: i for i, nm in enumerate(names)}
+    index = dict(zip(names, range(len(names))))
     mode_index = {nm: j for j, nm in enumerate(mode_names)}
 
     def param_leaf(node):
@@ -1091,7 +1094,12 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
         return None
 
     def numbered(x):
-        return x if isinstance(x, float) else E.substitute([x], param_leaf)[0]
+        if isinstance(x, float):
+            return x
+        if x.op == "param":    # a parameter leaf (the common case), as substitute makes it
+            got = param_leaf(x)
+            return x if got is None else got
+        return E.substitute([x], param_leaf)[0]
 
     subs = {nm: (numbered(c), t, numbered(o)) for nm, (c, t, o) in subs.items()}
 
@@ -1140,13 +1148,19 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     # rows of one shape repeated often enough are evaluated as arrays over their instances
     # (templated from the traced rows directly); the others get straight-line code
     shape_cache: dict = {}
-    # what a name is to compiled_leaf: 1 an unknown, 2 a mode, 4 a parameter (summed)
-    category: dict[str, int] = dict.fromkeys(index, 1)
-    for nm in mode_index:
-        category[nm] = category.get(nm, 0) + 2
-    for nm in pindex:
-        category[nm] = category.get(nm, 0) + 4
-    category_of = category.get
+    # what a name is to compiled_leaf, in the low three bits: 1 an unknown, 2 a mode, 4 a
+    # parameter (summed), and above them its number as that (a name of one kind only)
+    code: dict[str, int] = dict(zip(pindex, range(4, 8 * len(pindex) + 4, 8)))
+    several = index.keys() & code.keys()
+    code.update(zip(index, range(1, 8 * len(index) + 1, 8)))
+    for nm in several:
+        code[nm] = 5
+    for nm, j in mode_index.items():
+        c = code.get(nm)
+        code[nm] = (j << 3) | 2 if c is None else (c & 7) | 2
+
+    def category_of(nm):
+        return code.get(nm, 0) & 7
     # id(row) -> (row, key, names, ...), as provenance.get(row) reads it
     prov_rows = provenance.rows if provenance is not None else None
 
@@ -1182,7 +1196,49 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
 
     lookup = {"y": index, "yp": index, "param": pindex, "mode": mode_index}
 
-    groups, scalar_rows = _array_groups(raw, array_rows, compiled_leaf, shape_of=shape_of)
+    def shapes_of(rows):
+        """:func:`shape_of` of each row; the kinds of the names of the rows of one
+        provenance key are looked up together, and rows of one key and kinds share one
+        shape and one slot list."""
+        if prov_rows is None:
+            return [shape_of(r) for r in rows]
+        out = [None] * len(rows)
+        by_key: dict = {}     # (key, number of names) -> (positions, names of each row)
+        for i, row in enumerate(rows):
+            p = prov_rows.get(id(row))
+            if p is None or p[0] is not row:
+                out[i] = codegen.row_shape(row, compiled_leaf)
+                continue
+            names = p[2]
+            b = by_key.get((p[1], len(names)))
+            if b is None:
+                b = by_key[p[1], len(names)] = ([], [])
+            b[0].append(i)
+            b[1].append(names)
+        for (key, width), (at, names_of) in by_key.items():
+            codes = np.fromiter(map(code.get, itertools.chain.from_iterable(names_of),
+                                    itertools.repeat(0)), dtype=np.int64,
+                                count=width * len(at)).reshape(len(at), width)
+            kinds = codes & 7
+            alike = (kinds == kinds[0]).all(axis=1)
+            if not np.isin(kinds[0], (0, 1, 2, 4)).all():
+                alike[:] = False    # a name of several kinds: row by row
+            shape = slots = block = None
+            for j, (i, names, same) in enumerate(zip(at, names_of, alike.tolist())):
+                if not same:
+                    out[i] = shape_of(rows[i])
+                    continue
+                if j == 0:      # the first row computes (or finds) the shape
+                    out[i] = shape_of(rows[i])
+                    shape, slots = shape_cache[key, tuple(kinds[0].tolist())]
+                    if shape is not None:   # every row's slot payloads, as arrays
+                        block = {kind: codes[:, places] >> 3 for kind, places in slots.items()}
+                    continue
+                out[i] = None if shape is None else \
+                    (shape, _Slots(names, slots, lookup, block, j))
+        return out
+
+    groups, scalar_rows = _array_groups(raw, array_rows, compiled_leaf, shapes_of=shapes_of)
     if groups:
         scalar_res = E.substitute([raw[i] for i in scalar_rows], leaf)
     else:
@@ -1213,8 +1269,7 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
             inc_y[row] = sorted(ys)
             inc_yp[row] = sorted(yps)
     differential = np.zeros(len(names), dtype=bool)
-    for cols in inc_yp:
-        differential[cols] = True
+    differential[np.fromiter(itertools.chain.from_iterable(inc_yp), dtype=np.int64)] = True
     check_structure(names, labels, inc_y, inc_yp, differential)
     del inc_y, inc_yp
     if not groups:
@@ -1223,7 +1278,7 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     # events: repeated shapes as arrays too
     ev_raw = [ev.condition for _, ev in events]
     ev_groups, ev_scalar = _array_groups(ev_raw, array_rows, compiled_leaf, len(raw),
-                                         shape_of=shape_of)
+                                         shapes_of=shapes_of)
     ev_exprs = E.substitute([ev_raw[i] for i in ev_scalar], leaf) if ev_scalar else []
 
     # parametric subexpressions (constants and parameters only) are computed once per parameter
@@ -1264,10 +1319,11 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
         for k, g in enumerate(ev_groups):
             sources.append(g.generate(f"events_{k}", ev_labels, jacobian=False))
 
+    meta = list(map(operator.attrgetter("start", "nominal", "unit", "description"),
+                    map(infos.__getitem__, names)))
+    starts, nominals, units, descriptions = ([m[k] for m in meta] for k in range(4))
     system = System(
-        name, names, differential,
-        [infos[nm].start for nm in names], [infos[nm].nominal for nm in names],
-        [infos[nm].unit for nm in names], [infos[nm].description for nm in names], labels,
+        name, names, differential, starts, nominals, units, descriptions, labels,
         rows, cols, residual_fn, jac_fn,
         observed_fn, {nm: (observed[nm][1], observed[nm][2]) for nm in obs_names}, event_fn,
         events, mode_names, mode_start, subs, sources)
@@ -1414,14 +1470,18 @@ class _ArrayRows:
 
 class _Slots:
     """The payloads of a row's slots, per kind, as the names of its provenance key's places:
-    ``slots[kind]`` lists the place of each slot's name, ``lookup[kind]`` numbers names."""
+    ``slots[kind]`` lists the place of each slot's name, ``lookup[kind]`` numbers names.
+    ``block[kind][j]``, where given, holds them already (row ``j`` of a block of rows of one
+    provenance key)."""
 
-    __slots__ = ("names", "slots", "lookup")
+    __slots__ = ("names", "slots", "lookup", "block", "j")
 
-    def __init__(self, names, slots, lookup):
+    def __init__(self, names, slots, lookup, block=None, j=0):
         self.names = names
         self.slots = slots
         self.lookup = lookup
+        self.block = block
+        self.j = j
 
     def __getitem__(self, kind):
         number, names = self.lookup[kind], self.names
@@ -1436,8 +1496,16 @@ def _slot_arrays(leaves_per_row) -> dict:
     out = {kind: [np.empty(n, dtype=np.int64) for _ in range(len(first[kind]))]
            for kind in codegen.SLOT_LEAVES}
     batches: dict[int, tuple] = {}
+    blocks: dict[int, tuple] = {}
     for k, lv in enumerate(leaves_per_row):
         if lv.__class__ is _Slots:
+            if lv.block is not None:
+                b = blocks.get(id(lv.block))
+                if b is None:
+                    b = blocks[id(lv.block)] = (lv.block, [], [])
+                b[1].append(k)
+                b[2].append(lv.j)
+                continue
             b = batches.get(id(lv.slots))
             if b is None:
                 b = batches[id(lv.slots)] = (lv.slots, lv.lookup, [], [])
@@ -1447,6 +1515,12 @@ def _slot_arrays(leaves_per_row) -> dict:
             for kind in codegen.SLOT_LEAVES:
                 for s, v in enumerate(lv[kind]):
                     out[kind][s][k] = v
+    for block, at, js in blocks.values():
+        at, js = np.asarray(at, dtype=np.int64), np.asarray(js, dtype=np.int64)
+        for kind in codegen.SLOT_LEAVES:
+            got = block[kind][js]
+            for s in range(got.shape[1]):
+                out[kind][s][at] = got[:, s]
     for slots, lookup, at, names in batches.values():
         at = np.asarray(at, dtype=np.int64)
         for kind in codegen.SLOT_LEAVES:
@@ -1471,24 +1545,30 @@ class _ArrayPart:
         self.uses_modes = any(g.index["mode"] for g in groups)
 
 
-def _array_groups(exprs, array_rows, leaf_of=None, n_rows=None, shape_of=None):
+def _array_groups(exprs, array_rows, leaf_of=None, n_rows=None, shapes_of=None):
     """Split rows into groups of one shape (evaluated as arrays) and the rest.
 
     ``n_rows`` (default ``len(exprs)``) is the size of the system, for the automatic choice;
-    ``shape_of(row)`` gives :func:`pvgraph.codegen.row_shape` of a row (default: computed).
+    ``shapes_of(rows)`` gives :func:`pvgraph.codegen.row_shape` of each row (default:
+    computed).
     """
     size = len(exprs) if n_rows is None else n_rows
     if not exprs or array_rows is False or (array_rows is None and size < ARRAY_MIN_ROWS):
         return [], list(range(len(exprs)))
     min_group = 2 if array_rows is True else ARRAY_MIN_GROUP
     by_shape: dict = {}
+    of_object: dict = {}    # id(shape) -> its members (rows of one block share the object)
     scalar = []
-    for i, r in enumerate(exprs):
-        shape = codegen.row_shape(r, leaf_of) if shape_of is None else shape_of(r)
+    shapes = [codegen.row_shape(r, leaf_of) for r in exprs] if shapes_of is None else \
+        shapes_of(exprs)
+    for i, shape in enumerate(shapes):
         if shape is None:
             scalar.append(i)
             continue
-        by_shape.setdefault(shape[0], []).append((i, shape[1]))
+        members = of_object.get(id(shape[0]))
+        if members is None:
+            members = of_object[id(shape[0])] = by_shape.setdefault(shape[0], [])
+        members.append((i, shape[1]))
     groups = []
     for members in by_shape.values():
         if len(members) < min_group:
