@@ -66,6 +66,21 @@ class Event:
         return y_new, yp_new
 
 
+def atol_vector(atol, n):
+    """``atol`` as one entry per variable: given as a number, or as ``n`` of them."""
+    atol = np.asarray(atol, dtype=float)
+    if atol.ndim > 1 or atol.size not in (1, n):
+        raise ValueError(f"atol must be a number or have one entry per variable ({n}), got "
+                         f"shape {atol.shape}")
+    return np.broadcast_to(atol.ravel() if atol.ndim else atol, (n,)).copy()
+
+
+def stopping_event(fired, events):
+    """The event that stops the run among those ``fired`` at one instant: the first terminal
+    one, else the first (declaration order)."""
+    return next((events[j] for j in fired if events[j].terminal), events[fired[0]])
+
+
 def normalize_events(events):
     """Turn Events and scipy-style callables (``.terminal``, ``.direction``) into Events."""
     if events is None:

@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from pvgraph.errors import InitializationError, SolverError
-from pvgraph.solver.events import EventTracker, normalize_events
+from pvgraph.solver.events import (EventTracker, atol_vector, normalize_events,
+                                   stopping_event)
 from pvgraph.solver.cstep import ADV_END, ADV_PAUSE, make_integrator
 from pvgraph.solver.cstep import c_run as _c_run, c_system_of as _c_system_of
 from pvgraph.solver.ida import SOLVER_NAME, UROUND, initial_step
@@ -187,11 +188,7 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
     rtol = float(rtol)
     if not rtol > 0.0:
         raise ValueError(f"rtol must be positive, got {rtol}")
-    atol = np.asarray(atol, dtype=float)
-    if atol.ndim > 1 or atol.size not in (1, n):
-        raise ValueError(f"atol must be a number or have one entry per variable ({n}), got "
-                         f"shape {atol.shape}")
-    atol = np.broadcast_to(atol.ravel() if atol.ndim else atol, (n,)).copy()
+    atol = atol_vector(atol, n)
     if not np.all(atol > 0.0):
         raise ValueError("atol must be positive for every variable")
     if var_names is not None:
@@ -264,9 +261,7 @@ def _first_hit(found, event_list, interpolate, records, t_old, t_new):
             if other.terminal or other.action is not None:
                 fired.append(j)
         fired.sort()
-        first = next((event_list[j] for j in fired if event_list[j].terminal),
-                     event_list[fired[0]])
-        return te, fired, first, ye, ype
+        return te, fired, stopping_event(fired, event_list), ye, ype
     return None
 
 

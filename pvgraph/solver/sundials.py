@@ -45,7 +45,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from pvgraph.errors import InitializationError, SolverError
-from pvgraph.solver.events import normalize_events
+from pvgraph.solver.events import atol_vector, normalize_events, stopping_event
 from pvgraph.solver.ida import dominant_names, initial_step
 from pvgraph.solver.initial import start_values
 from pvgraph.solver.linalg import SPARSE_MIN_N, JacobianEvaluator
@@ -139,11 +139,7 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
     if not (np.all(np.isfinite(y)) and np.all(np.isfinite(yp))):
         raise InitializationError("y0 and yp0 must be finite")
     rtol = float(rtol)
-    atol_arr = np.asarray(atol, dtype=float)
-    if atol_arr.ndim > 1 or atol_arr.size not in (1, n):
-        raise ValueError(f"atol must be a number or have one entry per variable ({n}), got "
-                         f"shape {atol_arr.shape}")
-    atol_arr = np.broadcast_to(atol_arr.ravel() if atol_arr.ndim else atol_arr, (n,)).copy()
+    atol_arr = atol_vector(atol, n)
     if not (rtol > 0.0 and np.all(atol_arr > 0.0)):
         raise ValueError("rtol and atol must be positive")
     if calc_initial not in ("algebraic", "all", None):
@@ -312,9 +308,8 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                         if ev.terminal or ev.action is not None:
                             fired.append(int(i))
                     if fired:
-                        first = next((event_list[j] for j in fired if event_list[j].terminal),
-                                     event_list[fired[0]])
-                        hit = (tn, fired, first, out.y.copy(), out.yp.copy())
+                        hit = (tn, fired, stopping_event(fired, event_list), out.y.copy(),
+                               out.yp.copy())
                     if hit is None:
                         continue
                     nsteps += 1     # the step that found the event is left behind
