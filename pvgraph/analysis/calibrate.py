@@ -211,11 +211,8 @@ def _as_parameters(parameters) -> list[FitParameter]:
         for name, spec in parameters.items():
             if isinstance(spec, FitParameter):
                 out.append(spec)
-            elif isinstance(spec, (int, float)):
-                out.append(FitParameter(name, float(spec)))
             else:
-                initial, lower, upper = spec
-                out.append(FitParameter(name, float(initial), float(lower), float(upper)))
+                out.append(_from_spec(name, spec))
         parameters = out
     parameters = list(parameters)
     if not parameters:
@@ -225,6 +222,32 @@ def _as_parameters(parameters) -> list[FitParameter]:
     if dupes:
         raise CalibrationError(f"parameters listed twice: {dupes}")
     return parameters
+
+
+def _from_spec(name, spec) -> FitParameter:
+    """A :class:`FitParameter` from ``initial`` or ``(initial, lower, upper)``, each a number
+    (SI) or a quantity (``"2 mm^2"``): quantities give the table's unit (their first one)."""
+    from ..units import UnitError, _NUMBER, is_quantity, parse_unit, to_unit
+    items = tuple(spec) if isinstance(spec, (tuple, list)) else (spec,)
+    if len(items) not in (1, 3):
+        raise CalibrationError(f"parameter {name!r}: give an initial value or (initial, lower, "
+                               f"upper), got {spec!r}")
+    unit = next((_NUMBER.match(x).group(2) for x in items
+                 if isinstance(x, str) and is_quantity(x) and _NUMBER.match(x).group(2)), "")
+    factor = parse_unit(unit)[0] if unit else 1.0
+    values = []
+    for what, x in zip(("initial value", "lower bound", "upper bound"), items):
+        try:     # a plain number is SI, as everywhere in calibrate
+            values.append(float(to_unit(x, unit, f"{name} {what}")) * factor
+                          if unit and is_quantity(x) else float(to_unit(x, "", f"{name} {what}")))
+        except UnitError as exc:
+            raise CalibrationError(str(exc)) from None
+        except (TypeError, ValueError):
+            raise CalibrationError(f"parameter {name!r}: {what} {x!r} is not a number or a "
+                                   f"quantity") from None
+    if unit:
+        return FitParameter(name, *values, unit=unit, display=lambda v, f=factor: v / f)
+    return FitParameter(name, *values)
 
 
 def _central_jacobian(evaluate, z, f0, lo, hi, step):
@@ -264,7 +287,9 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
     measured : array
         The data.
     parameters : list of FitParameter, or mapping
-        ``{name: initial}`` or ``{name: (initial, lower, upper)}`` also accepted.
+        ``{name: initial}`` or ``{name: (initial, lower, upper)}`` also accepted: numbers in SI
+        units, or quantities (``{"orifice.A": ("2 mm^2", "0.5 mm^2", "8 mm^2")}``), whose
+        unit the table then shows.
     sigma : float or array, optional
         Standard deviation of each datum (default 1). Weights are ``1 / sigma``.
     labels : list of str, optional

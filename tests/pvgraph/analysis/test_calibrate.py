@@ -174,3 +174,24 @@ def test_model_failing_at_start_is_reported():
         raise ParameterError("A: must be positive")
     with pytest.raises(CalibrationError, match="initial parameters: A: must be positive"):
         calibrate(broken, [1.0, 2.0], {"a": 1.0})
+
+
+def test_quantities_in_a_parameter_mapping_are_si_inside_and_shown_in_their_unit():
+    """``{"A": ("2 mm^2", "0.5 mm^2", 8e-6)}``: the model sees SI (a plain bound is SI), the
+    table shows mm^2; a bound of another dimension is refused by name."""
+    x = np.linspace(0.0, 1.0, 8)
+    seen = []
+
+    def predict(theta):
+        seen.append(theta["A"])
+        return theta["A"] * 1e6 * x + 1.0
+
+    fit = calibrate(predict, 2.5 * x + 1.0, {"A": ("2 mm^2", "0.5 mm^2", 8e-6)})
+    assert seen[0] == pytest.approx(2e-6, rel=1e-12)
+    assert fit["A"] == pytest.approx(2.5e-6, rel=1e-6)
+    row = fit.table().splitlines()[2].split()
+    assert row[:4] == ["A", "mm^2", "2", "2.5"]
+    with pytest.raises(CalibrationError, match="A lower bound = '1 bar' is a pressure"):
+        calibrate(predict, x, {"A": ("2 mm^2", "1 bar", 8e-6)})
+    with pytest.raises(CalibrationError, match=r"initial value or \(initial, lower, upper\)"):
+        calibrate(predict, x, {"A": (1.0, 2.0)})
