@@ -201,22 +201,29 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
         registry[name].structural = trace.structural[name]
 
     subs: dict[str, tuple] = {}
+    why: dict[str, tuple] = {}
     incidence = None
     if eliminate_aliases:
         incidence = []
         equations = _eliminate_aliases(equations, infos, subs, trace.values, found, incidence,
-                                       prov)
+                                       prov, why)
     del found
 
     from .index_reduction import given_starts, reduce_index
-    equations, events, observed, reduction = reduce_index(equations, infos, subs, events,
-                                                          observed, given_starts(leaves),
-                                                          incidence)
-    del incidence
     from .system import build_system
-    system = build_system(circuit.name, equations, infos, subs, observed, events, mode_names,
-                          mode_start, parameters=registry, tables=trace.tables,
-                          array_rows=array_rows, provenance=prov)
+    try:
+        equations, events, observed, reduction = reduce_index(equations, infos, subs, events,
+                                                              observed, given_starts(leaves),
+                                                              incidence)
+        del incidence
+        system = build_system(circuit.name, equations, infos, subs, observed, events,
+                              mode_names, mode_start, parameters=registry,
+                              tables=trace.tables, array_rows=array_rows, provenance=prov)
+    except StructureError as exc:
+        told = _fixed_elsewhere(exc, equations, infos, subs, why)
+        if told:
+            raise StructureError(f"{exc}\n{told}") from None
+        raise
     system._circuit = circuit
     system._known_roles = roles     # for the no-reference check (Circuit.compile takes them)
     system._components = dict(leaves)
@@ -889,7 +896,8 @@ def _token(x):
     return repr(x) if x.__class__ is float else x
 
 
-def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=None, prov=None):
+def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=None, prov=None,
+                       why=None):
     """Remove unknowns defined by affine one- and two-variable equations (in place on subs).
 
     The unknown removed must have a constant coefficient, so that no parameter value can make
@@ -897,8 +905,12 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
     ``values`` holds the parameters' compile-time values (for carrying start values);
     ``found`` the names of the values and of the derivatives each equation reads (two sets
     per equation, taken over), if known. ``incidence``, a list, receives ``(values read,
-    derivatives read)`` (sets of names) of each equation returned.
+    derivatives read)`` (sets of names) of each equation returned; ``why``, a dict, the label
+    of the equation that removed each unknown and the unknown it was expressed in (None where
+    fixed to a value), for the messages of singular systems.
     """
+    if why is None:
+        why = {}
     if found is None:
         found = [read_sets(eq.expr) for eq in equations]
     used_der: set[str] = set().union(*[d for _, d in found])
@@ -1066,6 +1078,7 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
                     continue
                 off = _kdiv(_kneg(k), a)
                 subs[v] = (0.0, None, off)
+                why[v] = (eq.label, None)
                 _set_start(infos, v, None, 0.0, num(off))
                 changed = True
                 continue
@@ -1082,6 +1095,7 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
                 # eliminate u: u = -(b*w + k)/a
                 coef, off = _kdiv(_kneg(b), a), _kdiv(_kneg(k), a)
                 subs[u] = (coef, w, off)
+                why[u] = (eq.label, w)
                 _set_start(infos, u, w, num(coef), num(off))
                 changed = True
                 continue
@@ -1154,6 +1168,35 @@ def _apply(e, subs, resolve):
 
 # 5. structural checks ------------------------------------------------------------------------
 
+def _fixed_elsewhere(exc, equations, infos, subs, why) -> str:
+    """For a structurally singular system: what already fixes the unknowns of each
+    over-determined component equation (the connections made them aliases of, or values set
+    by, other components' equations), or "" where there is nothing to add."""
+    over = getattr(exc, "over_determined", None)
+    if not over or not subs:
+        return ""
+    origin = {eq.label: eq.origin for eq in equations}
+    lines = []
+    for label in over[:NAMES_IN_MESSAGES]:
+        path = origin.get(label)
+        if path is None or path.startswith("node "):
+            continue
+        gone = [nm for nm in infos if nm.startswith(path + ".") and nm in subs]
+        told = []
+        for nm in gone[:3]:
+            steps, at = [], nm       # the chain of eliminations from nm to where it ends
+            while at in why and len(steps) < 12:
+                by, at = why[at]
+                steps.append(f"  {by}" + (f" -> {at}" if at is not None else " (a value)"))
+            told.append(f"{nm} is determined by the chain\n" + "\n".join(steps))
+        if told:
+            lines.append(f"{label}: " + "\n".join(told))
+    if not lines:
+        return ""
+    return ("The unknowns of these equations are already determined by other equations "
+            "(two components fixing one quantity: two position or pressure sources on one "
+            "node, two flow sources in series):\n" + "\n".join(lines))
+
 def check_structure(names, eq_labels, inc_y, inc_yp, differential):
     """Balance, structural regularity and index-one checks; raise StructureError with names.
 
@@ -1187,7 +1230,9 @@ def check_structure(names, eq_labels, inc_y, inc_yp, differential):
                          + _list([names[j] for j in under]))
         parts.append("Check for missing connections, a missing volume or source, or two "
                      "components fixing the same quantity.")
-        raise StructureError("\n".join(parts))
+        err = StructureError("\n".join(parts))
+        err.over_determined = [eq_labels[i] for i in over] if unmatched_eq else []
+        raise err
 
     # index one: solvable for (y' of differential variables, y of algebraic variables)
     differential = np.asarray(differential, dtype=bool)

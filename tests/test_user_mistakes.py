@@ -400,3 +400,24 @@ def test_a_port_connected_to_itself_is_named():
     tank = c.add("t", Tank())
     with pytest.raises(CircuitError, match=r"connect\(\) joins port 't.port' to itself"):
         c.connect(tank.port, tank.port)
+
+
+def test_two_position_sources_on_one_mass_name_both_drivers():
+    """A sine and a constant both drive one mass's position through two PositionInputs: the
+    structural message names the over-determined equation and the chain of connections and
+    equations that already fixed its unknown, down to both drivers."""
+    from pvgraph.components import Mass, PositionInput, Sine
+    c = Circuit("two_drivers")
+    m = c.add("m", Mass(m=1.0))
+    p1, p2 = c.add("p1", PositionInput()), c.add("p2", PositionInput())
+    s, k = c.add("s", Sine(amplitude=0.01, f=1.0)), c.add("k", Constant(k=0.0))
+    c.connect(m.flange, p1.flange, p2.flange)
+    c.connect(s.y, p1.u)
+    c.connect(k.y, p2.u)
+    with pytest.raises(StructureError) as err:
+        c.compile()
+    text = str(err.value)
+    assert "Over-determined" in text and "s equation 1 (Sine)" in text
+    assert "already determined by other equations" in text
+    chain = text.split("s.y is determined by the chain")[1]
+    assert "p1.u" in chain and "p2.u" in chain and "m.flange.x" in chain

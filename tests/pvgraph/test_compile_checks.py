@@ -109,8 +109,8 @@ def _incidence_of_alias_elimination(circuit):
     captured = {}
     original = K._eliminate_aliases
 
-    def spy(equations, infos, subs, values, found=None, incidence=None, prov=None):
-        out = original(equations, infos, subs, values, found, incidence, prov)
+    def spy(equations, infos, subs, values, found=None, incidence=None, prov=None, why=None):
+        out = original(equations, infos, subs, values, found, incidence, prov, why)
         captured["equations"], captured["incidence"] = out, incidence
         return out
 
