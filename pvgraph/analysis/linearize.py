@@ -250,7 +250,11 @@ def _frequency_grid(roots, points_per_decade):
 
 
 def _jacobians(system, op):
-    t, y, yp = op.t, op.y, np.zeros(system.n)
+    """``dF/dy`` and ``dF/dy'`` at the operating point, at its rates: a shaft angle that
+    keeps turning has ``der(phi) = w`` there, and a machine's friction and flow laws read
+    ``der(phi)`` (at zero rate they would be linearised at standstill)."""
+    t, y = op.t, op.y
+    yp = np.zeros(system.n) if getattr(op, "yp", None) is None else np.asarray(op.yp, float)
     J_y = system.jacobian_dense(t, y, yp, 0.0)
     J_yp = (system.jacobian_dense(t, y, yp, _C_BIG) - J_y) / _C_BIG
     if not (np.all(np.isfinite(J_y)) and np.all(np.isfinite(J_yp))):

@@ -205,3 +205,43 @@ def test_feedback_refuses_an_algebraic_loop():
     lm = _model(control.tf([1.0, 0.0], [1.0, 1.0]))     # s / (s + 1): D = 1
     with pytest.raises(PvgraphError, match="feedthrough"):
         lm.open_loop("u", "y")
+
+
+def test_a_motor_turning_an_inertia_is_linearised_at_its_speed():
+    """Variable pump -> 1 L -> motor -> 2 kg m^2 against 100 N m. At the operating point the
+    shaft turns (der(phi) = w), and the motor's friction torque ``(1 - eta_hm) D |dp|
+    tanh(w / w_eps)`` is saturated, so dT/dw = 0 and dT/dp = D (1 - (1 - eta_hm) dp /
+    sqrt(dp^2 + dp_eps^2)). With C = V / beta:
+    C p' = -(K_p + K_m) p - D_m w, J w' = D_m (1 - 0.08 p / sqrt(p^2 + dp_eps^2)) p + T."""
+    import math
+
+    from pvgraph.components import (Constant, HydraulicMotor, Inertia, SpeedSource,
+                                    TorqueSource, VariableDisplacementPump)
+    c = Circuit("hst")
+    drv = c.add("drv", SpeedSource(w0="1500 rpm"))
+    pump = c.add("pump", VariableDisplacementPump(D="40 cm^3/rev", eta_v=0.93, eta_hm=0.9))
+    u = c.add("u", Constant(k=0.6))
+    node = c.add("node", VolumeNode(V="1 L"))
+    mot = c.add("mot", HydraulicMotor(D="80 cm^3/rev", eta_v=0.95, eta_hm=0.92))
+    J = c.add("J", Inertia(J="2 kg m^2"))
+    load = c.add("load", TorqueSource(T="-100 N m"))
+    tank = c.add("tank", Tank())
+    c.connect(drv.shaft, pump.shaft)
+    c.connect(u.y, pump.u)
+    c.connect(pump.b, node.port, mot.A)
+    c.connect(pump.a, mot.B, tank.port)
+    c.connect(mot.shaft, J.shaft, load.shaft)
+    from pvgraph.analysis import steady_state
+    from pvgraph.analysis.linearize import linearize
+    system = c.compile()
+    op = steady_state(system)
+    model = linearize(system, op, None, ["J.w"])
+    Dp, Dm, w_p = 40e-6 / (2 * math.pi), 80e-6 / (2 * math.pi), 50 * math.pi
+    Kp, Km = 0.07 * Dp * w_p / 2e7, (1 / 0.95 - 1) * Dm * w_p / 2e7
+    C, p = 1e-3 / 7e8, op["node.port.p"]
+    hand = np.array([[-(Kp + Km) / C, -Dm / C],
+                     [Dm * (1 - 0.08 * p / math.sqrt(p * p + 1e8)) / 2.0, 0.0]])
+    want = np.sort_complex(np.linalg.eigvals(hand))
+    got = np.sort_complex(model.poles())
+    assert abs(want[0].imag) == pytest.approx(6.5417, rel=1e-3)   # it rings
+    np.testing.assert_allclose(got, want, rtol=1e-5)   # at standstill: -41.9 and -7.7, real
