@@ -79,6 +79,7 @@ ETA_CF = 0.25               # reduction after a Newton failure
 H0_FRACTION = 1e-3          # first step as a fraction of the interval
 H0_YP_NORM = 0.5            # ... and such that ||h0 y'0|| <= 1/2
 UROUND = np.finfo(float).eps
+H0_MIN_REL = 256 * np.finfo(float).eps    # ... and at least this fraction of |t| (see initial_step)
 NO_GROWTH_AFTER_FAILURE = False     # CVODE's rule; off by default (module docstring)
 N_CULPRITS = 3              # variable names quoted in failure messages
 
@@ -112,8 +113,13 @@ def error_weights(y, rtol, atol):
     return 1.0 / (rtol * np.abs(y) + atol)
 
 
-def initial_step(yp, ewt_mask, t_span_length, max_step=None, first_step=None):
-    """IDA's first step: 0.001 of the interval, reduced so that ||h y'|| <= 1/2."""
+def initial_step(yp, ewt_mask, t_span_length, max_step=None, first_step=None, t=0.0):
+    """IDA's first step: 0.001 of the interval, reduced so that ||h y'|| <= 1/2.
+
+    Not below ``H0_MIN_REL * |t|`` (nor above the interval): a step that cannot change the
+    time ``t`` in floating point is no step (far from t = 0, at t = 1e9, 5e-9 s is not), and
+    the minimum-step test would stop the run before its first step.
+    """
     if first_step is not None:
         h = float(first_step)
     else:
@@ -123,7 +129,8 @@ def initial_step(yp, ewt_mask, t_span_length, max_step=None, first_step=None):
             h = H0_YP_NORM / ypnorm
     if max_step is not None and h > max_step:
         h = max_step
-    return h
+    floor = min(H0_MIN_REL * abs(t), t_span_length)
+    return max(h, floor) if floor > 0.0 else h
 
 
 def bdf_coefficients(h, k, psi):
@@ -271,7 +278,7 @@ class IDAIntegrator:
         self.phi[0] = self.yy
         self.phi[1] = self.yp
         self._set_weights(self.yy)
-        h = initial_step(self.yp, self.ewt_err, t_bound - t, self.max_step, first_step)
+        h = initial_step(self.yp, self.ewt_err, t_bound - t, self.max_step, first_step, t)
         if (self.tn + h - t_bound) * h > 0.0:
             h = (t_bound - self.tn) * (1.0 - 4.0 * UROUND)
         if h <= 0.0:

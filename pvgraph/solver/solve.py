@@ -332,7 +332,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         ewt = 1.0 / (rtol * np.abs(y) + atol)
         span = max(t_end - t, 1e-3 * (t_end - t0))     # an action at t_end still needs one
         h0 = min(initial_step(yp, ewt if error_mask is None else ewt * error_mask,
-                              span, max_step, first_step), span)
+                              span, max_step, first_step, t), span)
         return start_values(counted, t, y, yp, mode, alg_mask, alg_given, jacobian, rtol,
                             atol, span, h0, var_names, lu=ic_lu)
 

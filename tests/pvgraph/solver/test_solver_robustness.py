@@ -245,3 +245,14 @@ def test_finite_difference_jacobian_of_a_long_chain_detects_its_sparsity():
     s = res.stats
     assert s["nre"] < s["nni"] + 10 * s["nje"] + 2 * n + 50      # grouped, not n per matrix
     assert np.all(np.diff(res.y[-1]) <= 1e-9) and 0.0 < res.y[-1, 0] < 1.0
+
+
+@pytest.mark.parametrize("t0", [1e6, 1e9])
+def test_a_run_far_from_t_zero_starts(t0):
+    """y' = -y on [t0, t0 + 1]: y(t0 + 1) = exp(-1). Far from t = 0 the first step (IDA's
+    0.5 / ||y'||, 5e-9 s here) would not change t in floating point; it is raised to a few
+    ulps of t0, and the run keeps its accuracy."""
+    from pvgraph.solver import solve_dae
+    res = solve_dae(lambda t, y, yp: yp + y, (t0, t0 + 1.0), [1.0], [-1.0], rtol=1e-8,
+                    atol=1e-12, t_eval=[t0 + 1.0])
+    assert res.y[-1, 0] == pytest.approx(np.exp(-1.0), rel=1e-5)
