@@ -528,7 +528,10 @@ def _pressure_islands(circuit: Circuit, known: dict | None = None) -> list[dict]
     Ports joined by a connection are one network; so are two ports of one component when an
     equation holds both their flows (a flow path: an orifice, a valve edge). A port fixes the
     pressure level when its component's equations use its pressure but never its flow (a
-    Tank, a pressure source); a volume is a port whose pressure's time derivative appears.
+    Tank, a pressure source), and so does a load: a port whose pressure acts on a mechanical
+    port of its component (a piston, a motor) where that component's other such ports lie in
+    other networks (a motor whose two ports share one closed loop feels their difference
+    only); a volume is a port whose pressure's time derivative appears.
     ``known``: the port roles of components by path, where the compiler read them from its
     templates (:func:`pvgraph._roles.template_roles`); the others are traced here.
     """
@@ -579,10 +582,10 @@ def _islands(circuit: Circuit, known: dict) -> list[dict]:
         got = local.get(key)
         if got is None:
             at = {n: k for k, n in enumerate(hyd)}
-            paths, fixing, vols = roles
+            paths, fixing, vols, coupled = roles
             pairs = [(at[a], at[b]) for flows in paths for a, b in zip(flows, flows[1:])]
             got = local[key] = (len(local), roles, pairs, [at[n] for n in fixing],
-                                [at[n] for n in vols])
+                                [at[n] for n in vols], [at[n] for n in coupled])
         kinds.append(got[0])
         bases.append(base)
     ea, eb = [], []
@@ -607,7 +610,7 @@ def _islands(circuit: Circuit, known: dict) -> list[dict]:
     ref = np.zeros(n, dtype=bool)
     vol = np.zeros(n, dtype=bool)
     rows, cols = [np.asarray(ea, dtype=np.int64)], [np.asarray(eb, dtype=np.int64)]
-    for k, _, pairs, fixing, vols in local.values():
+    for k, _, pairs, fixing, vols, _ in local.values():
         at = bases_a[kinds_a == k]
         for a, b in pairs:
             rows.append(at + a)
@@ -623,6 +626,15 @@ def _islands(circuit: Circuit, known: dict) -> list[dict]:
     _, first = np.unique(label, return_index=True)
     has_ref = np.zeros(len(first), dtype=bool)
     has_ref[label[ref]] = True
+    for k, _, _, _, _, coupled in local.values():
+        if not coupled:
+            continue
+        nets = label[bases_a[kinds_a == k][:, None] + np.asarray(coupled)[None, :]]
+        # a load holds the level of a network where it meets one coupled port of a component
+        # whose others lie elsewhere (or that has only one)
+        apart = np.ones(len(nets), dtype=bool) if nets.shape[1] == 1 else \
+            np.any(nets != nets[:, :1], axis=1)
+        has_ref[nets[apart].ravel()] = True
     loose = np.flatnonzero(~has_ref[label])         # the ports of those networks
     loose = loose[np.argsort(label[loose], kind="stable")]
     cuts = np.flatnonzero(np.diff(label[loose])) + 1
@@ -700,7 +712,7 @@ def _port_roles(comp, path, hyd):
     try:
         residuals, _ = comp.trace(path)
     except Exception:           # the compiler reports a component that cannot trace
-        return [], list(hyd), []
+        return [], list(hyd), [], []
     return _roles_of(residuals, comp, path, hyd)
 
 
@@ -721,8 +733,10 @@ def _roles_of(residuals, comp, path, hyd=None):
     # an internal flow (a line's q) carries flow between the ports whose equations hold it
     carriers = [v for v, var in getattr(comp, "variables", {}).items() if var.unit == "m^3/s"]
     held: dict[str, str] = {}
+    reads = []
     for r in residuals:
         leaves_r = _symbols_read(r)
+        reads.append(leaves_r)
         used |= leaves_r
         flows = [n for n in hyd if ("sym", f"{path}.{n}.q") in leaves_r]
         if len(flows) > 1:
@@ -736,7 +750,18 @@ def _roles_of(residuals, comp, path, hyd=None):
     fixing = [n for n in hyd if ("sym", f"{path}.{n}.p") in used and
               ("sym", f"{path}.{n}.q") not in used]
     vols = [n for n in hyd if ("der", f"{path}.{n}.p") in used]
-    return paths, fixing, vols
+    # ports whose pressure acts on a mechanical port (a piston's force, a motor's torque): the
+    # load holds the pressure level of their network unless all of them share that network
+    # (a motor in a closed loop feels only the difference)
+    from .component import HYDRAULIC, SIGNAL
+    mech = tuple(f"{path}.{n}." for n, pt in comp.ports.items()
+                 if pt.domain is not HYDRAULIC and pt.domain is not SIGNAL)
+    coupled = set()
+    if mech:
+        for leaves_r in reads:
+            if any(nm.startswith(mech) for _, nm in leaves_r):
+                coupled.update(n for n in hyd if ("sym", f"{path}.{n}.p") in leaves_r)
+    return paths, fixing, vols, [n for n in hyd if n in coupled]
 
 
 def _symbols_read(root) -> set:

@@ -909,8 +909,20 @@ def main(argv=None) -> int:
         print(f"pvgraph: error: {exc}", file=sys.stderr)
         return 2
     args = parser.parse_args(argv)
+    before = os.environ.get("PVGRAPH_BACKEND")
     if args.eval is not None:   # in the environment, so worker processes see it too
         os.environ["PVGRAPH_BACKEND"] = args.eval
+    try:
+        return _run(args, argv)
+    finally:
+        if args.eval is not None and argv is not None:  # called in-process: as it was
+            if before is None:
+                os.environ.pop("PVGRAPH_BACKEND", None)
+            else:
+                os.environ["PVGRAPH_BACKEND"] = before
+
+
+def _run(args, argv) -> int:
     try:
         with warnings.catch_warnings():
             if argv is None:    # the command's own process (a caller may record warnings)

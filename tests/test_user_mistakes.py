@@ -421,3 +421,47 @@ def test_two_position_sources_on_one_mass_name_both_drivers():
     assert "already determined by other equations" in text
     chain = text.split("s.y is determined by the chain")[1]
     assert "p1.u" in chain and "p2.u" in chain and "m.flange.x" in chain
+
+
+def _ram(m_kg):
+    from pvgraph.components import Cylinder, Mass
+    c = Circuit("ram")
+    pump = c.add("pump", FlowSource(Q=0.0))
+    hose = c.add("hose", VolumeNode(V=litre(0.1), p0=5e5))
+    cyl = c.add("cyl", Cylinder(A_A=math.pi / 4 * 0.05 ** 2, A_rod=5e-4, stroke=0.5,
+                                V_dead_A=2e-5, V_dead_B=2e-5, p0_A=5e5))
+    load = c.add("m", Mass(m=m_kg, g=-9.81, x0=0.2, b=2e4))
+    tank = c.add("t", Tank())
+    c.connect(pump.port, hose.port, cyl.A)
+    c.connect(cyl.B, tank.port)
+    c.connect(cyl.flange, load.flange)
+    return c
+
+
+def test_a_load_on_a_piston_is_a_pressure_reference():
+    """Pump -> hose -> cap side of a cylinder lifting 500 kg, rod side to tank: the load holds
+    the cap pressure at m g / A_A whatever its start value, so no warning of a floating
+    network; a closed pump-motor loop with no tank, which feels only pressure differences,
+    still gets one."""
+    from pvgraph.analysis import steady_state
+    from pvgraph.components import (FixedDisplacementPump, HydraulicMotor, Inertia,
+                                    SpeedSource)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PlausibilityWarning)
+        system = _ram(500.0).compile()
+    op = steady_state(system)
+    assert op["cyl.A.p"] == pytest.approx(500 * 9.81 / (math.pi / 4 * 0.05 ** 2), rel=1e-9)
+
+    c = Circuit("closed_loop")
+    drive = c.add("drive", SpeedSource(w0=100.0))
+    pump = c.add("pump", FixedDisplacementPump(D="10 cm^3/rev"))
+    motor = c.add("motor", HydraulicMotor(D="20 cm^3/rev"))
+    shaft = c.add("J", Inertia(J=0.1))
+    high = c.add("high", VolumeNode(V=litre(0.5)))
+    low = c.add("low", VolumeNode(V=litre(0.5)))
+    c.connect(drive.shaft, pump.shaft)
+    c.connect(pump.b, high.port, motor.A)
+    c.connect(motor.B, low.port, pump.a)
+    c.connect(motor.shaft, shaft.shaft)
+    with pytest.warns(PlausibilityWarning, match="no pressure reference"):
+        c.compile()
