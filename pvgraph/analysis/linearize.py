@@ -165,16 +165,17 @@ class LinearModel:
         time to 2 %, overshoot in % of the final value, ...); ``options`` go to it unchanged.
 
         Unless ``timepts`` is given, the response is computed over ten time constants of the
-        slowest stable pole in 20000 steps: python-control's own horizon follows the fast
-        modes of a linearised circuit and can end before a slow mode has settled.
+        slowest stable mode that the step excites (python-control's own horizon follows the
+        fast modes of a linearised circuit and can end before a slow one has settled), with
+        steps of at most a fiftieth of the fastest such mode's time constant (at least 20000
+        steps, at most 500000). A mode whose share of the response is below 1e-4 of its
+        largest (a slow leakage pole all but cancelled by a zero) sets neither.
         """
         import control
+        sys = self.siso(output, input)
         if "timepts" not in options:
-            rate = -self.poles().real
-            rate = rate[rate > 0.0]
-            t_end = 10.0 / rate.min() if rate.size else 1.0
-            options["timepts"] = np.linspace(0.0, t_end, 20001)
-        return control.step_info(self.siso(output, input), **options)
+            options["timepts"] = _step_grid(sys.A, sys.B, sys.C)
+        return control.step_info(sys, **options)
 
     def damping(self):
         """``(wn, zeta, poles)``: natural frequency ``|p|`` [rad/s] and damping ratio
@@ -239,6 +240,30 @@ class LinearModel:
         sys = signal.StateSpace(self.A, self.B[:, j:j + 1], self.C[i:i + 1], self.D[i:i + 1, j:j + 1])
         _, yout, _ = signal.lsim(sys, np.full(len(t), amplitude), t)
         return np.asarray(yout).reshape(-1)
+
+
+def _step_grid(A, b, c) -> np.ndarray:
+    """Times for the step response of ``(A, b, c)`` (see :meth:`LinearModel.step_info`)."""
+    A, b, c = np.asarray(A, float), np.asarray(b, float), np.asarray(c, float)
+    lam = np.linalg.eigvals(A) if A.size else np.zeros(0)
+    weight = np.ones(len(lam))
+    if A.size:
+        lam, V = np.linalg.eig(A)
+        if np.linalg.cond(V) < 1e10:        # modal shares of the step response
+            share = (c @ V).ravel() * np.linalg.solve(V, b).ravel()
+            with np.errstate(divide="ignore", invalid="ignore"):
+                weight = np.abs(np.where(lam != 0, share / lam, share))
+            top = weight.max() if weight.size else 0.0
+            weight = weight / top if top > 0 else np.ones(len(lam))
+    rate = -lam.real
+    keep = (rate > 0.0) & (weight >= 1e-4)
+    if not keep.any():
+        keep = rate > 0.0
+    if not keep.any():
+        return np.linspace(0.0, 1.0, 20001)
+    t_end = 10.0 / rate[keep].min()
+    steps = int(np.clip(50.0 * t_end * np.abs(lam[keep]).max(), 20000, 500000))
+    return np.linspace(0.0, t_end, steps + 1)
 
 
 def _frequency_grid(roots, points_per_decade):

@@ -245,3 +245,21 @@ def test_a_motor_turning_an_inertia_is_linearised_at_its_speed():
     got = np.sort_complex(model.poles())
     assert abs(want[0].imag) == pytest.approx(6.5417, rel=1e-3)   # it rings
     np.testing.assert_allclose(got, want, rtol=1e-5)   # at standstill: -41.9 and -7.7, real
+
+
+def test_step_info_default_grid_resolves_a_fast_response_beside_a_cancelled_slow_pole():
+    """A 20 rad/s second-order response (zeta 0.5) with a leakage pole at -0.03 1/s all but
+    cancelled by a zero at -0.0300003: the default horizon must follow the response, not the
+    slow pole (300 s in 20000 steps would be 15 ms a step). Reference: python-control on a
+    fine grid over 2 s; the 2 % settling time of the pure second-order response is about
+    4 / (zeta wn) = 0.4 s."""
+    import control
+    wn, zeta = 20.0, 0.5
+    g = control.tf([wn ** 2], [1.0, 2 * zeta * wn, wn ** 2]) * \
+        control.tf([1.0, 0.0300003], [1.0, 0.03]) * (0.03 / 0.0300003)
+    ref = control.step_info(g, T=np.linspace(0.0, 2.0, 200001))
+    info = _model(g).step_info("y", "u")
+    # to two steps of the default grid (1 s / 20000); the slow pole's grid is 15 ms a step
+    assert info["RiseTime"] == pytest.approx(ref["RiseTime"], abs=1e-4)
+    assert info["SettlingTime"] == pytest.approx(ref["SettlingTime"], abs=1e-4)
+    assert info["Overshoot"] == pytest.approx(ref["Overshoot"], rel=1e-3)
