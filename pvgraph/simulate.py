@@ -144,6 +144,30 @@ def _atomic_write(path, write):
         raise
 
 
+def _seconds(value, what: str) -> float:
+    """A time [s]: a number, or a quantity (``"2 s"``, ``"500 ms"``, a pint Quantity)."""
+    from .units import UnitError, to_unit
+    try:
+        return float(to_unit(value, "s", what))
+    except UnitError as exc:
+        raise PvgraphError(str(exc)) from None
+    except (TypeError, ValueError):
+        raise PvgraphError(f"{what} = {value!r}: give a time in seconds (a number, or a "
+                           f"quantity such as '2 s')") from None
+
+
+def _full_vector(system, values, what: str) -> np.ndarray:
+    """``values`` as a float vector of the system's ``n`` unknowns, or an error naming it."""
+    try:
+        out = np.array(values, dtype=float)
+    except (TypeError, ValueError):
+        raise PvgraphError(f"{what}: not an array of numbers") from None
+    if out.shape != (system.n,):
+        raise PvgraphError(f"{what} has shape {out.shape}, but {system.name} has {system.n} "
+                           f"unknowns (system.names lists them in order)")
+    return out
+
+
 def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
              atol: float | None = None, solver: str = "pvgraph", t_eval=None,
              max_step: float | None = None, start: dict[str, float] | None = None,
@@ -154,8 +178,8 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     Parameters
     ----------
     target : Circuit or System
-    t_end : float
-        End time [s].
+    t_end : float or quantity
+        End time [s] (``t_start`` and ``max_step`` alike; ``"500 ms"`` is read too).
     rtol : float
         Relative tolerance.
     atol : float, optional
@@ -189,18 +213,21 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     followed at the steps the states need; give ``max_step`` or ``suppress_alg=False`` to
     resolve it.
     """
-    system = target.compile() if isinstance(target, Circuit) else target
-    if not isinstance(system, System):
+    if not isinstance(target, (Circuit, System)):
         raise PvgraphError(f"simulate() takes a Circuit or a System, got {type(target).__name__}")
-    if params:
-        system = system.with_params(params)
+    t_end, t_start = _seconds(t_end, "t_end"), _seconds(t_start, "t_start")
+    if max_step is not None:
+        max_step = _seconds(max_step, "max_step")
     if solver not in SOLVERS:
         raise PvgraphError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
     if not (math.isfinite(t_end) and t_end > t_start):
         raise PvgraphError(f"t_end ({t_end!r}) must be finite and greater than t_start "
                            f"({t_start!r})")
-    y_init = np.array(system.y0 if y0 is None else y0, dtype=float)
-    yp_init = np.array(system.yp0 if yp0 is None else yp0, dtype=float)
+    system = target.compile() if isinstance(target, Circuit) else target
+    if params:
+        system = system.with_params(params)
+    y_init = _full_vector(system, system.y0 if y0 is None else y0, "y0")
+    yp_init = _full_vector(system, system.yp0 if yp0 is None else yp0, "yp0")
     for name, value in (start or {}).items():
         coef, idx, off = system.resolve(name)
         if idx is None or coef == 0.0:

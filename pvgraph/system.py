@@ -510,6 +510,17 @@ class System:
         return difflib.get_close_matches(name, self._name_pool(), n=n, cutoff=0.6)
 
     def _unknown(self, name):
+        if name in self.observed:
+            reads = []
+            try:
+                reads = sorted({self.names[k] for op, k in
+                                E.leaves(self._obs_exprs[name], ("y",))})
+            except (KeyError, IndexError, TypeError, AttributeError):
+                pass
+            via = f" ({', '.join(reads[:4])})" if reads else ""
+            return (f"{self.name}: {name!r} is a derived output, computed from the unknowns; "
+                    f"it has no value of its own to set or solve for: use one of the variables "
+                    f"it is computed from{via}.")
         under = sorted(n for n in self._name_pool() if n.startswith(f"{name}."))
         if under:
             more = f", ... ({len(under)} in all)" if len(under) > 6 else ""

@@ -3,6 +3,7 @@
 import math
 import warnings
 
+import numpy as np
 import pytest
 
 from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
@@ -465,3 +466,39 @@ def test_a_load_on_a_piston_is_a_pressure_reference():
     c.connect(motor.shaft, shaft.shaft)
     with pytest.warns(PlausibilityWarning, match="no pressure reference"):
         c.compile()
+
+
+def _demo():
+    c = Circuit("demo")
+    pump = c.add("pump", FlowSource(Q=lpm(10)))
+    node = c.add("node", VolumeNode(V=litre(0.5)))
+    orifice = c.add("orifice", Orifice(A=mm2(2)))
+    tank = c.add("tank", Tank())
+    c.connect(pump.port, node.port, orifice.a)
+    c.connect(orifice.b, tank.port)
+    return c
+
+
+def test_a_start_value_for_a_derived_output_says_what_it_is():
+    with pytest.raises(KeyError, match=r"'orifice.q' is a derived output.*node.port.p"):
+        simulate(_demo(), 0.1, start={"orifice.q": 1e-4})
+
+
+def test_vectors_of_the_wrong_length_and_times_with_units():
+    """A y0 of the wrong length is named with the system's size; times take quantities
+    (``"200 ms"``), and a time of another dimension or no number is refused by name."""
+    from pvgraph.analysis import steady_state
+    system = _demo().compile()
+    for bad in (np.zeros(1), np.zeros(3)):
+        with pytest.raises(PvgraphError, match=r"y0 has shape .* demo has 2 unknowns"):
+            steady_state(system, y0=bad)
+        with pytest.raises(PvgraphError, match=r"y0 has shape .* demo has 2 unknowns"):
+            simulate(system, 0.1, y0=bad)
+    # 10 L/min through 2 mm^2 (Cd 0.6, 870 kg/m^3): dp = rho/2 (Q/(Cd A))^2
+    dp = 870 / 2 * (10 / 60000 / (0.6 * 2e-6)) ** 2
+    assert steady_state(_demo())["node.port.p"] == pytest.approx(dp, rel=2e-3)
+    assert simulate(system, "200 ms").t[-1] == pytest.approx(0.2, rel=1e-12)
+    with pytest.raises(PvgraphError, match="t_end = '2 bar' is a pressure"):
+        simulate(system, "2 bar")
+    with pytest.raises(PvgraphError, match="t_end = None: give a time in seconds"):
+        simulate(system, None)

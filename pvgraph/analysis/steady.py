@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import InitializationError
+from ..errors import InitializationError, PvgraphError
 from ..system import System
 
 __all__ = ["OperatingPoint", "steady_state"]
@@ -325,9 +325,16 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
         No steady state found; the message names the equations with the largest scaled
         residual and the variables they depend on most.
     """
+    from ..circuit import Circuit
+    from ..simulate import _full_vector
+    if isinstance(system, Circuit):
+        system = system.compile()
+    if not isinstance(system, System):
+        raise PvgraphError(f"steady_state() takes a System or a Circuit, got "
+                           f"{type(system).__name__}")
     if params:
         system = system.with_params(params)
-    y = np.array(system.y0 if y0 is None else y0, dtype=float)
+    y = _full_vector(system, system.y0 if y0 is None else y0, "y0")
     if system.n == 0:
         return OperatingPoint(y, np.zeros(0), system, t, 0.0, 0, "trivial")
     cyc = _cyclic_states(system, t, y)
