@@ -314,6 +314,17 @@ def _port_description(circuit, name: str) -> str:
     return f"{what} ({spec.description})" if what and spec.description else what
 
 
+def _alias_text(coef, target, off) -> str:
+    """``"= target"``, ``"= -1 * target + 0.0001667"`` or ``"fixed 0"`` (SI)."""
+    if target is None:
+        return f"fixed {off:g}"
+    text = f"= {target}" if coef == 1.0 else \
+        (f"= -{target}" if coef == -1.0 else f"= {coef:g} * {target}")
+    if off != 0.0:
+        text += f" {'+' if off > 0 else '-'} {abs(off):g}"
+    return text
+
+
 def cmd_vars(args) -> int:
     target = _target(args)
     circuit = target.circuit()
@@ -325,8 +336,7 @@ def cmd_vars(args) -> int:
             system.descriptions[k] if system.descriptions else "")))
     exposed = system.exposed_names()
     for n, (coef, tgt, off) in sorted(system.aliases.items()):
-        kind = f"= {tgt}" if tgt is not None and coef == 1.0 and off == 0.0 else \
-            (f"= {coef:g} * {tgt}" if tgt is not None else f"fixed {off:g}")
+        kind = _alias_text(coef, tgt, off)
         rows.append((n, system.unit(n), kind, _port_description(circuit, n)))
     for n, (unit, desc) in sorted((n, v[:2]) for n, v in system.observed.items()):
         rows.append((n, unit, "output", desc or ""))

@@ -629,3 +629,12 @@ def test_eval_c_gives_the_python_codes_numbers(rig_file, tmp_path, monkeypatch, 
         main(["--eval", "fortran"] + args)
     assert exc.value.code == 2
     assert "invalid choice: 'fortran'" in capsys.readouterr().err
+
+
+def test_vars_shows_the_offset_of_an_affine_alias(rig_file, capsys):
+    """The node's flow is the pump's 10 L/min minus what leaves through the orifice's other
+    side: ``node.port.q = Q - ...``; the listing keeps the constant (1.66667e-4 m^3/s)."""
+    assert main(["vars", f"{rig_file}:build"]) == 0
+    rows = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()[1:]}
+    assert "fixed -0.000166667" in rows["pump.port.q"]
+    assert "+ 0.000166667" in rows["node.port.q"]

@@ -51,6 +51,7 @@ import numpy as np
 from pvgraph.cbackend import LoadOnce
 from pvgraph.errors import SolverError
 from pvgraph.solver.ida import (HARMONIC, JACOBIAN_FAIL, MAX_ORDER, SETUP_FAIL, SOLVER_NAME,
+                                min_step_reason,
                                 IDAIntegrator, _nonfinite_entries)
 
 __all__ = ["CStepIntegrator", "kernel", "c_system_of", "c_run"]
@@ -549,7 +550,7 @@ class CStepIntegrator(IDAIntegrator):
             exc, self._exc = self._exc, None
             raise exc
         if code == STEP_HMIN:
-            self._raise("the step size fell below the minimum", s.err_t, s.err_h)
+            self._raise(min_step_reason(s.err_t), s.err_t, s.err_h)
         if code == STEP_ERR_FAILS:
             self._raise(f"the local error test failed {s.err_count} times in one step",
                         s.err_t, s.err_h, self._fail[1],

@@ -203,3 +203,27 @@ class EventTracker:
             return t_new if ga == 0.0 or np.sign(ga) == np.sign(g_old) else t_old
         xtol = max(4 * UROUND * abs(t_new), 1e-14 * abs(t_new - t_old), 1e-300)
         return brentq(g, t_old, t_new, xtol=xtol, rtol=4 * UROUND)
+
+
+def check_times(t0, t_end, t_eval, max_step, first_step):
+    """``t_eval`` as a float array (or None), after the checks both solvers make of the
+    output times and step options; ValueError naming what is wrong."""
+    if max_step is not None and not (max_step > 0.0):      # NaN fails too; inf: no limit
+        raise ValueError(f"max_step must be positive, got {max_step!r}")
+    if first_step is not None and not (0.0 < first_step < np.inf):
+        raise ValueError(f"first_step must be positive and finite, got {first_step!r}")
+    if t_eval is None:
+        return None
+    t_eval = np.asarray(t_eval, dtype=float).ravel()
+    bad = np.flatnonzero(~np.isfinite(t_eval))
+    if bad.size:
+        raise ValueError(f"t_eval must be finite: t_eval[{bad[0]}] = {float(t_eval[bad[0]])!r}")
+    down = np.flatnonzero(np.diff(t_eval) < 0.0)
+    if down.size:
+        k = int(down[0])
+        raise ValueError(f"t_eval must be sorted: t_eval[{k + 1}] = {float(t_eval[k + 1])!r} "
+                         f"comes after t_eval[{k}] = {float(t_eval[k])!r}")
+    if t_eval.size and (t_eval[0] < t0 or t_eval[-1] > t_end):
+        raise ValueError(f"t_eval must lie within t_span [{t0!r}, {t_end!r}], got "
+                         f"[{float(t_eval[0])!r}, {float(t_eval[-1])!r}]")
+    return t_eval

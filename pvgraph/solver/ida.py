@@ -113,6 +113,16 @@ def error_weights(y, rtol, atol):
     return 1.0 / (rtol * np.abs(y) + atol)
 
 
+def min_step_reason(t) -> str:
+    """Why a step below ``16 eps |t|`` is refused, with the way out where ``t`` is large."""
+    text = (f"the step size fell below the minimum 16 eps |t| = {16.0 * UROUND * abs(t):.3g} "
+            f"s (the resolution of the time t)")
+    if abs(t) > 1e4:
+        text += ("; far from t = 0 the time cannot resolve shorter steps: start the run "
+                 "nearer t = 0 (times are relative: shift t_start and the inputs' times)")
+    return text
+
+
 def initial_step(yp, ewt_mask, t_span_length, max_step=None, first_step=None, t=0.0):
     """IDA's first step: 0.001 of the interval, reduced so that ||h y'|| <= 1/2.
 
@@ -329,7 +339,7 @@ class IDAIntegrator:
         psi_old = self.psi
         while True:
             if abs(hh) < 16.0 * UROUND * abs(saved_t):
-                self._raise("the step size fell below the minimum", saved_t, hh)
+                self._raise(min_step_reason(saved_t), saved_t, hh)
             # --- coefficients (IDASetCoeffs)
             if hh != self.hused or kk != self.kused:
                 self.ns = 0

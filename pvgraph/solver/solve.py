@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from pvgraph.errors import InitializationError, SolverError
-from pvgraph.solver.events import (EventTracker, atol_vector, normalize_events,
+from pvgraph.solver.events import (EventTracker, atol_vector, check_times, normalize_events,
                                    stopping_event)
 from pvgraph.solver.cstep import ADV_END, ADV_PAUSE, make_integrator
 from pvgraph.solver.cstep import c_run as _c_run, c_system_of as _c_system_of
@@ -199,14 +199,7 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
         raise ValueError(f"calc_initial must be 'algebraic', 'all' or None, got {calc_initial!r}")
     alg_mask = _as_mask(algebraic, n)
     event_list = normalize_events(events)
-    if t_eval is not None:
-        t_eval = np.asarray(t_eval, dtype=float).ravel()
-        if np.any(np.diff(t_eval) < 0.0):
-            raise ValueError("t_eval must be sorted")
-        if t_eval.size and (t_eval[0] < t0 or t_eval[-1] > t_end):
-            raise ValueError("t_eval must lie within t_span")
-    if max_step is not None and not max_step > 0.0:
-        raise ValueError(f"max_step must be positive, got {max_step}")
+    t_eval = check_times(t0, t_end, t_eval, max_step, first_step)
     nonneg = _nonnegative(nonnegative, n, y0, var_names)
 
     with np.errstate(all="ignore"):

@@ -45,7 +45,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from pvgraph.errors import InitializationError, SolverError
-from pvgraph.solver.events import atol_vector, normalize_events, stopping_event
+from pvgraph.solver.events import atol_vector, check_times, normalize_events, stopping_event
 from pvgraph.solver.ida import dominant_names, initial_step
 from pvgraph.solver.initial import start_values
 from pvgraph.solver.linalg import SPARSE_MIN_N, JacobianEvaluator
@@ -151,12 +151,7 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
     if var_names is not None:
         var_names = [str(v) for v in var_names]
     event_list = normalize_events(events)
-    if t_eval is not None:
-        t_eval = np.asarray(t_eval, dtype=float).ravel()
-        if np.any(np.diff(t_eval) < 0.0):
-            raise ValueError("t_eval must be sorted")
-        if t_eval.size and (t_eval[0] < t0 or t_eval[-1] > t_end):
-            raise ValueError("t_eval must lie within t_span")
+    t_eval = check_times(t0, t_end, t_eval, max_step, first_step)
 
     res_cb = _Residual(residual)
 
@@ -250,7 +245,9 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
             try:
                 y, yp, h0 = initialise(t_start, y, yp, mode)
             except InitializationError as exc:
-                where = "" if t_start == t0 else f"after the event at t = {t_start:.9g}: "
+                where = "" if t_start == t0 else (
+                    f"restarting after a step failure at t = {t_start:.9g}: "
+                    if t_start == t_failed else f"after the event at t = {t_start:.9g}: ")
                 raise InitializationError(f"{SOLVER_NAME} backend: {where}{exc}") from exc
             solver = sksundae.ida.IDA(res_cb, calc_initcond=None, first_step=h0, **options)
             try:

@@ -68,3 +68,32 @@ def test_an_atol_of_the_wrong_length_is_named():
     sol = solve_dae(lambda t, y, yp: np.array([yp[0] + y[0]]), (0.0, 1.0), [1.0], [-1.0],
                     atol=[1e-10], rtol=1e-8)
     assert sol.y[-1, 0] == pytest.approx(np.exp(-1.0), rel=1e-6)
+
+
+def _backends():
+    from pvgraph.solver import solve_dae_sundials
+    return [solve_dae, pytest.param(solve_dae_sundials, marks=pytest.mark.skipif(
+        __import__("importlib").util.find_spec("sksundae") is None, reason="no scikit-sundae"))]
+
+
+@pytest.mark.parametrize("solver", _backends())
+@pytest.mark.parametrize("options, message", [
+    ({"t_eval": [0.5, float("nan")]}, r"t_eval must be finite: t_eval\[1\] = nan"),
+    ({"t_eval": [0.5, 0.2]}, r"t_eval must be sorted: t_eval\[1\] = 0.2 comes after"),
+    ({"t_eval": [0.5, 2.0]}, r"t_eval must lie within t_span \[0.0, 1.0\]"),
+    ({"first_step": -1.0}, "first_step must be positive and finite, got -1.0"),
+    ({"max_step": 0.0}, "max_step must be positive, got 0.0"),
+])
+def test_both_solvers_refuse_bad_times_alike(solver, options, message):
+    with pytest.raises(ValueError, match=message):
+        solver(lambda t, y, yp: yp + y, (0.0, 1.0), [1.0], [-1.0], **options)
+
+
+def test_the_ida_backend_names_a_restart_after_a_failure_as_such():
+    """0 = z^2 + t - 1 has no real root after t = 1: IDA fails there and its restart fails
+    too; the message names the restart after a step failure (no event was given)."""
+    pytest.importorskip("sksundae")
+    from pvgraph.solver import solve_dae_sundials
+    with pytest.raises(InitializationError, match="restarting after a step failure at t = 1"):
+        solve_dae_sundials(lambda t, y, yp: np.array([yp[0] - y[1], y[1] ** 2 + t - 1.0]),
+                           (0.0, 2.0), [0.0, 1.0], [1.0, 0.0], algebraic=[1])
