@@ -204,6 +204,9 @@ class JacobianEvaluator:
     def _convert(self, m):
         """Bring a user Jacobian to the storage the LU solver expects."""
         if sp.issparse(m):
+            if not (self.sparse or self.dense_only or self.groups is not None) and \
+                    self.n >= SPARSE_MIN_N:
+                self.sparse = True      # a sparse Jacobian of the caller's, without a pattern
             return m.tocsc() if self.sparse else m.toarray()
         m = np.asarray(m, dtype=float)
         if m.shape != (self.n, self.n):

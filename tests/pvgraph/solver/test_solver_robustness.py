@@ -256,3 +256,33 @@ def test_a_run_far_from_t_zero_starts(t0):
     res = solve_dae(lambda t, y, yp: yp + y, (t0, t0 + 1.0), [1.0], [-1.0], rtol=1e-8,
                     atol=1e-12, t_eval=[t0 + 1.0])
     assert res.y[-1, 0] == pytest.approx(np.exp(-1.0), rel=1e-5)
+
+
+def test_a_sparse_jacobian_without_a_pattern_stays_sparse():
+    """A caller's ``jac`` returning scipy.sparse for a big system (the heat equation on 400
+    points) is factorised sparse, as with ``jac_sparsity``; a dense one stays dense."""
+    import scipy.sparse as sp
+
+    from pvgraph.solver.linalg import SPARSE_MIN_N, JacobianEvaluator
+    n = max(400, SPARSE_MIN_N)
+    lap = sp.diags([np.ones(n - 1), -2 * np.ones(n), np.ones(n - 1)], [-1, 0, 1]).tocsc()
+
+    def fun(t, y, yp):
+        return yp - lap @ y
+
+    def jac(t, y, yp, c):
+        return (c * sp.identity(n) - lap).tocsc()
+
+    ev = JacobianEvaluator(fun, n, jac)
+    m = ev.iteration_matrix(0.0, np.ones(n), np.zeros(n), None, 10.0, None, 1e-3)
+    assert sp.issparse(m) and m.nnz == 3 * n - 2
+    dense = JacobianEvaluator(fun, n, lambda t, y, yp, c: (c * sp.identity(n) - lap).toarray())
+    assert not sp.issparse(dense.iteration_matrix(0.0, np.ones(n), np.zeros(n), None, 10.0,
+                                                  None, 1e-3))
+    y0 = np.sin(np.pi * np.arange(1, n + 1) / (n + 1))
+    a = solve_dae(fun, (0.0, 1.0), y0, lap @ y0, jac=jac, t_eval=[1.0], rtol=1e-8, atol=1e-10)
+    b = solve_dae(fun, (0.0, 1.0), y0, lap @ y0, t_eval=[1.0], rtol=1e-8, atol=1e-10)
+    # the slowest mode decays as exp(-4 sin^2(pi / (2 (n + 1))) t)
+    lam = 4 * np.sin(np.pi / (2 * (n + 1))) ** 2
+    np.testing.assert_allclose(a.y[-1], y0 * np.exp(-lam), rtol=1e-6)
+    np.testing.assert_allclose(a.y[-1], b.y[-1], rtol=1e-6)
