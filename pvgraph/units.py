@@ -130,10 +130,25 @@ _UNITS = {
     "rad": (1.0, _ONE, False), "deg": (math.pi / 180.0, _ONE, False),
     "rpm": (2.0 * math.pi / 60.0, _dim(s=-1), False), "rev": (2.0 * math.pi, _ONE, False),
     "%": (0.01, _ONE, False), "-": (1.0, _ONE, False), "1": (1.0, _ONE, False),
+    # US customary and engineering units of data sheets (exact definitions, NIST SP 811)
+    "ft": (0.3048, _dim(m=1), False), "lb": (0.45359237, _dim(kg=1), False),
+    "lbm": (0.45359237, _dim(kg=1), False),
+    "lbf": (0.45359237 * 9.80665, _dim(m=1, kg=1, s=-2), False),
+    "kgf": (9.80665, _dim(m=1, kg=1, s=-2), False),
+    "hp": (0.45359237 * 9.80665 * 0.3048 * 550.0, _dim(m=2, kg=1, s=-3), False),
+    "gal": (3.785411784e-3, _dim(m=3), False),                # US gallon
+    "Nm": (1.0, _dim(m=2, kg=1, s=-2), False),               # "N m" written together
+    "percent": (0.01, _ONE, False),
+    "RPM": (2.0 * math.pi / 60.0, _dim(s=-1), False),
+    "rps": (2.0 * math.pi, _dim(s=-1), False),
+    "r": (2.0 * math.pi, _ONE, False),                        # revolution, "r/min" (ISO)
+    "hr": (3600.0, _dim(s=1), False),
 }
 #: units that count an angle (a power of the radian, which is dimensionless in SI): the
 #: parser carries their angle exponent beside the dimension, see :func:`to_unit`
-_ANGLE = {"rad": 1, "deg": 1, "rev": 1, "rpm": 1}
+_ANGLE = {"rad": 1, "deg": 1, "rev": 1, "rpm": 1, "RPM": 1, "rps": 1, "r": 1}
+#: characters read as the notation they stand for ("mm²", "m/s²", "90°")
+_SPELLED = {"²": "^2", "³": "^3", "°": " deg", "⁻¹": "^-1"}
 _PREFIXES = {"p": 1e-12, "n": 1e-9, "u": 1e-6, "µ": 1e-6, "μ": 1e-6, "m": 1e-3, "c": 1e-2,
              "d": 1e-1, "k": 1e3, "M": 1e6, "G": 1e9}
 #: names of the dimensions people meet, for messages
@@ -189,6 +204,8 @@ def angle_power(text: str) -> int:
 def _parse(text: str) -> tuple[float, tuple, int]:
     """``(factor to SI, dimension, angle power)`` of a unit string."""
     src = str(text).strip()
+    for glyph, spelled in _SPELLED.items():
+        src = src.replace(glyph, spelled)
     if src in ("", "-", "1"):
         return 1.0, _ONE, 0
     tokens, pos = [], 0

@@ -149,3 +149,27 @@ def test_components_read_speeds_and_frequencies_as_a_designer_means_them():
 ])
 def test_viscosities_and_tonnes_as_datasheets_write_them(given, unit, expected):
     assert to_unit(given, unit) == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("text, unit, want", [
+    # NIST SP 811: 1 lbf = 4.4482216152605 N, 1 ft = 0.3048 m, 1 lb = 0.45359237 kg,
+    # 1 kgf = 9.80665 N, 1 hp = 745.69987158227022 W, 1 gal (US) = 3.785411784 L
+    ("114 lbf/in", "N/m", 114 * 4.4482216152605 / 0.0254),
+    ("30 lbf ft", "N m", 30 * 4.4482216152605 * 0.3048),
+    ("10 ft", "m", 3.048),
+    ("4400 lb", "kg", 4400 * 0.45359237),
+    ("150 kgf/cm^2", "bar", 150 * 9.80665e4 / 1e5),
+    ("20 hp", "kW", 20 * 0.74569987158227022),
+    ("5 gal", "L", 5 * 3.785411784),
+    ("30 Nm", "N m", 30.0),
+    ("2 mm²", "m^2", 2e-6),
+    ("9.81 m/s²", "m/s^2", 9.81),
+    ("50 percent", "-", 0.5),
+    ("1800 RPM", "rad/s", 60 * math.pi),
+    ("1800 r/min", "rad/s", 60 * math.pi),
+    ("30 rps", "rad/s", 60 * math.pi),
+    ("90°", "rad", math.pi / 2),
+    ("2 hr", "s", 7200.0),
+])
+def test_us_customary_and_data_sheet_spellings(text, unit, want):
+    assert to_unit(text, unit, "x") == pytest.approx(want, rel=1e-13)
