@@ -480,7 +480,19 @@ def _sweep_cases(args, valid, prefix: dict | None = None) -> list[dict]:
     units = {name: declared_unit(desc) for name, (_, desc) in valid.items()}
     specs = {}
     for spec in args.param or []:
-        name, values = _parse_param(spec, args.random is not None, units)
+        given = spec.partition("=")[0].strip()
+        if "=" in spec and given:
+            _check_param_name(given, valid)     # the name before its values
+        value = valid.get(given, (None,))[0]
+        if isinstance(value, str) and not isinstance(value, bool):
+            # a choice (a valve's centre, a friction law): the values as written
+            name, values = given, [v.strip() for v in spec.partition("=")[2].split(",")]
+            if args.random is not None and len(values) > 1:
+                raise PvgraphError(f"--param {name}: a choice cannot be sampled; give one "
+                                   f"value with --random")
+            values = values[0] if args.random is not None else values
+        else:
+            name, values = _parse_param(spec, args.random is not None, units)
         _check_param_name(name, valid)
         if name in specs:
             raise PvgraphError(f"--param {name!r} is given twice")

@@ -638,3 +638,45 @@ def test_vars_shows_the_offset_of_an_affine_alias(rig_file, capsys):
     rows = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()[1:]}
     assert "fixed -0.000166667" in rows["pump.port.q"]
     assert "+ 0.000166667" in rows["node.port.q"]
+
+
+CENTRE_FILE = '''
+from pvgraph import Circuit
+from pvgraph.components import Constant, DirectionalValve43, FlowSource, Plug, Tank, VolumeNode
+
+
+def build():
+    c = Circuit("centres")
+    pump, node = c.add("pump", FlowSource(Q="10 L/min")), c.add("n", VolumeNode(V="0.2 L"))
+    valve = c.add("v", DirectionalValve43(A_max="20 mm^2", centre="open"))
+    u, tank = c.add("u", Constant(k=0.0)), c.add("t", Tank())
+    c.connect(pump.port, node.port, valve.P)
+    c.connect(valve.T, tank.port)
+    c.connect(u.y, valve.u)
+    c.connect(valve.A, c.add("pa", Plug()).port)
+    c.connect(valve.B, c.add("pb", Plug()).port)
+    return c
+'''
+
+
+def test_sweep_over_a_choice_and_a_misspelled_name_with_a_unit(tmp_path, capsys):
+    """A choice parameter (the 4/3 valve's centre) sweeps by its values as written; the
+    open centre passes the pump flow through two series edges, the tandem centre bypasses
+    P to T. A misspelled name given with a unit is named as unknown, not as a bad number."""
+    target = tmp_path / "centres.py"
+    target.write_text(CENTRE_FILE)
+    out = tmp_path / "sweep"
+    assert main(["sweep", f"{target}:build", "--param", "v.centre=open,tandem", "--var",
+                 "pump.port.p", "--out", str(out), "--t-end", "0.5"]) == 0
+    import json
+    cases = json.loads((out / "sweep.json").read_text())
+    rows = cases["cases"] if isinstance(cases, dict) else cases
+    assert [r["params"]["v.centre"] for r in rows] == ["open", "tandem"]
+    p_open, p_tandem = (r["outputs"]["pump.port.p"] for r in rows)
+    assert p_open > 100e5 and p_tandem < 2e5
+    capsys.readouterr()
+    assert main(["sweep", f"{target}:build", "--param", "v.A_mx=20 mm^2", "--var",
+                 "pump.port.p", "--out", str(tmp_path / "never")]) == 2
+    err = capsys.readouterr().err
+    assert "unknown parameter 'v.A_mx'; did you mean 'v.A_max'" in err
+    assert not (tmp_path / "never").exists()
