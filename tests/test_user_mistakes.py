@@ -502,3 +502,19 @@ def test_vectors_of_the_wrong_length_and_times_with_units():
         simulate(system, "2 bar")
     with pytest.raises(PvgraphError, match="t_end = None: give a time in seconds"):
         simulate(system, None)
+
+
+def test_a_signal_loop_with_gain_one_names_the_loop():
+    """y = u + k y with k = 1 has no solution (u = 1e-4 != 0): the start names the loop's
+    variable, found from the null vector of the initialisation matrix."""
+    from pvgraph.components import FirstOrderLag, Gain, Sum
+    from pvgraph.errors import InitializationError
+    c = Circuit("loop")
+    k, s, g = c.add("k", Constant(k=1e-4)), c.add("s", Sum(k1=1, k2=1)), c.add("g", Gain(k=1.0))
+    lag = c.add("lag", FirstOrderLag(tau=0.1))
+    c.connect(k.y, s.u1)
+    c.connect(s.y, g.u, lag.u)
+    c.connect(g.y, s.u2)
+    with pytest.raises(InitializationError, match=r"do not determine the combination of y of "
+                                                  r"'s.y'.*algebraic loop with gain 1"):
+        simulate(c, 0.1)

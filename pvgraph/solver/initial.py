@@ -158,7 +158,7 @@ def consistent_initial_conditions(fun, t0, y0, yp0, mode, algebraic, jacobian, r
         m = jacobian.mixed_matrix(t0, y, yp, r, cy, cyp, scale)
         info = lu.factor(m)
         if info != 0:
-            _raise_singular(info, mode, cy, t0, var_names)
+            _raise_singular(info, mode, cy, t0, var_names, m)
         dz = lu.solve(r)
         merit = wrms_norm(dz, wz)
         if merit <= IC_TOL:
@@ -218,20 +218,59 @@ def algebraic_rates(fun, t0, y, yp, cy, lu, t_span_length):
     yp[alg] = -z[alg]
 
 
-def _raise_singular(info, mode, cy, t0, var_names):
-    """Explain a singular initialisation matrix by the unknown whose column vanished."""
+#: largest system whose singular initialisation matrix is explained by its null vector
+NULL_VECTOR_MAX_N = 3000
+
+
+def _raise_singular(info, mode, cy, t0, var_names, m=None):
+    """Explain a singular initialisation matrix: by the unknowns of its null vector (the
+    combination the equations leave undetermined: a loop that fixes none of its members,
+    two parts pushing one quantity), else by the column where the factorisation stopped."""
+    def label(j):
+        name = var_names[j] if var_names is not None else f"y[{j}]"
+        return f"{'y' if cy[j] else 'y' + chr(39)} of {name!r}"
+    null = _null_columns(m)
+    if null:
+        raise InitializationError(
+            f"consistent initialisation ({mode!r}) at t = {t0:.9g}: the Newton matrix is "
+            f"singular: the equations do not determine the combination of "
+            f"{', '.join(label(j) for j in null)}: they hold for every value of it, or for "
+            f"none (an algebraic loop with gain 1, two components fixing one quantity, or "
+            f"an index above one).")
     col = info - 1
     if col < 0:
         raise InitializationError(
             f"consistent initialisation at t = {t0:.9g}: the Newton matrix is singular.")
-    name = var_names[col] if var_names is not None else f"y[{col}]"
-    what = "y" if cy[col] else "y'"
-    hint = ("; if it is algebraic (its derivative does not appear), list it in `algebraic`"
-            if mode == "algebraic" and not cy[col] else
+    hint = ("; if it is algebraic (its derivative does not appear), say so (solve_dae's "
+            "`algebraic`)" if mode == "algebraic" and not cy[col] else
             "; the equations may not determine it (structural singularity or index > 1)")
     raise InitializationError(
         f"consistent initialisation ({mode!r}) at t = {t0:.9g}: the Newton matrix is "
-        f"singular in the column of {what} of {name!r}{hint}.")
+        f"singular in the column of {label(col)}{hint}.")
+
+
+def _null_columns(m, k=4) -> list:
+    """The columns (up to ``k``, largest first) of the null vector of a singular matrix,
+    from its SVD with the columns scaled to unit norm; [] when that cannot be told."""
+    if m is None:
+        return []
+    try:
+        import scipy.sparse as sp
+        a = m.toarray() if sp.issparse(m) else np.asarray(m, dtype=float)
+        n = a.shape[1]
+        if n == 0 or n > NULL_VECTOR_MAX_N or not np.all(np.isfinite(a)):
+            return []
+        norms = np.linalg.norm(a, axis=0)
+        if np.any(norms == 0.0):        # an empty column is the answer by itself
+            return [int(j) for j in np.flatnonzero(norms == 0.0)[:k]]
+        _, sv, vt = np.linalg.svd(a / norms)
+        if sv[-1] > 1e-8 * sv[0]:
+            return []
+        v = np.abs(vt[-1])
+        order = [int(j) for j in np.argsort(-v) if v[j] > 0.1 * v.max()]
+        return order[:k]
+    except (ValueError, np.linalg.LinAlgError, MemoryError):
+        return []
 
 
 def consistency_distance(fun, t0, y0, yp0, jacobian, lu, h0, rtol, atol, r=None):
