@@ -518,3 +518,7 @@ def test_a_signal_loop_with_gain_one_names_the_loop():
     with pytest.raises(InitializationError, match=r"do not determine the combination of y of "
                                                   r"'s.y'.*algebraic loop with gain 1"):
         simulate(c, 0.1)
+    from pvgraph.analysis import steady_state
+    with pytest.raises(InitializationError, match=r"s equation 1 \(Sum\).*depends on no "
+                                                  r"unknown here"):
+        steady_state(c.compile())

@@ -287,8 +287,13 @@ def _culprits(system, sc, y, k=6):
         if not cols:  # only derivatives enter: this state can never settle
             cols = [system.names[j] for j in np.flatnonzero(np.abs(Jyp[i]) > 0)[:3]]
             what = "no steady value of"
+        if not cols:
+            lines.append(f"  {system.equations[i]}: scaled residual {f[i]:.3g}; it depends on "
+                         f"no unknown here: the equations contradict each other (a loop of "
+                         f"gain exactly 1, two sources fixing one quantity)")
+            continue
         lines.append(f"  {system.equations[i]}: scaled residual {f[i]:.3g}; "
-                     f"{what} {', '.join(cols) or '(none)'}")
+                     f"{what} {', '.join(cols)}")
     return lines
 
 
