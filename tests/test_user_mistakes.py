@@ -522,3 +522,17 @@ def test_a_signal_loop_with_gain_one_names_the_loop():
     with pytest.raises(InitializationError, match=r"s equation 1 \(Sum\).*depends on no "
                                                   r"unknown here"):
         steady_state(c.compile())
+
+
+def test_an_absurd_steady_pressure_is_named():
+    """10 L/min through a 1e-5 mm^2 leak gap: the steady pressure rho/2 (Q/(Cd A))^2 is
+    about 3e12 bar, beyond any hydraulic circuit: steady_state warns, naming the node."""
+    from pvgraph.analysis import steady_state
+    c = Circuit("dead_end")
+    pump, node = c.add("pump", FlowSource(Q=lpm(10))), c.add("node", VolumeNode(V=litre(0.5)))
+    gap, tank = c.add("gap", Orifice(A=1e-11)), c.add("tank", Tank())
+    c.connect(pump.port, node.port, gap.a)
+    c.connect(gap.b, tank.port)
+    with pytest.warns(PlausibilityWarning, match=r"implausible steady pressure .* node.port.p"):
+        op = steady_state(c.compile())
+    assert op["node.port.p"] > 1e16

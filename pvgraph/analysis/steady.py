@@ -367,4 +367,24 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
     if len(cyc):
         y1, yp1 = problem.split(y1)
         info["cyclic"] = [system.names[j] for j in cyc]
+    _check_pressures(system, y1)
     return OperatingPoint(y1, yp1, system, t, fn, total, method, info)
+
+
+def _check_pressures(system, y):
+    """Warn of a steady pressure beyond the physical range (as ``simulate`` does along a
+    run): a source into a dead end balanced only by a leakage gap."""
+    import warnings
+
+    from ..errors import PlausibilityWarning
+    from ..simulate import PRESSURE_LIMIT
+    cols = [j for j, unit in enumerate(system.units) if unit == "Pa"]
+    worst = sorted(((abs(float(y[j])), system.names[j]) for j in cols
+                    if not abs(y[j]) <= PRESSURE_LIMIT), reverse=True)
+    if worst:
+        listed = "; ".join(f"{n} is {v / 1e5:.3g} bar" for v, n in worst[:3])
+        warnings.warn(PlausibilityWarning(
+            f"{system.name}: implausible steady pressure (beyond {PRESSURE_LIMIT / 1e5:.0f} "
+            f"bar): {listed}. A flow source or pump feeding a closed valve or a dead end holds "
+            f"a steady state only through leakage; add a relief valve or an outlet."),
+            stacklevel=3)
