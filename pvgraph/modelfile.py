@@ -301,6 +301,8 @@ def _line_of(text: str, loc) -> int | None:
         written = json.dumps(str(key))[1:-1]        # as a file writes it: "tank\\n"
         pattern = re.compile(r'(?<![\w"])"?' + re.escape(written) + r'"?(?=\s*[=:.\]])')
         m = pattern.search(text, pos)
+        if m is None:       # a value, not a key: a port of a connection ("pump.port",)
+            m = re.compile(r'"' + re.escape(written) + r'"').search(text, pos)
         if m is None:
             break
         pos = m.end()

@@ -122,3 +122,16 @@ def test_no_code_runs_from_a_file():
         loads(text)
     with pytest.raises(ModelFileError, match="a model file is .toml or .json"):
         load("circuit.pickle")
+
+
+def test_a_bad_port_in_a_connection_list_of_many_lines_names_its_own_line():
+    """Exported files write one connection per line: the error names the line of the
+    connection that holds the bad port, not the line of ``connections = [``."""
+    text = dumps(loads(TEXT), "toml")
+    bad = text.replace('"tank.port"', '"tank.prt"')
+    line = next(k + 1 for k, row in enumerate(bad.splitlines()) if '"tank.prt"' in row)
+    assert line > next(k + 1 for k, row in enumerate(bad.splitlines())
+                       if row.startswith("connections"))
+    with pytest.raises(ModelFileError, match=rf"demo.toml, line {line} \(connections.1\): "
+                                             rf"Tank 'tank' has no port 'prt'"):
+        loads(bad, source="demo.toml")
