@@ -25,6 +25,10 @@ __all__ = ["Event", "normalize_events", "EventTracker"]
 
 UROUND = np.finfo(float).eps
 SIGN_PROBE = 1e-6           # fraction of the step at which an initially-zero g is probed
+AFTER_CROSSING = 1e-300     # |g| standing for "just past zero" on the side crossed to
+#: an event firing this many times in a row with no time between its zeros (rounding apart)
+#: is a switch without end (a sliding mode, Zeno behaviour): the run stops with its name
+CHATTER_EVENTS = 50
 
 
 @dataclass
@@ -36,7 +40,9 @@ class Event:
     fun : callable
         ``fun(t, y, yp) -> float``; the event occurs where it crosses zero.
     direction : int
-        +1 only rising crossings (negative to positive), -1 only falling, 0 both.
+        +1 only rising crossings (negative to positive), -1 only falling, 0 both. A crossing
+        back right after the event's own action is a crossing (as a relay's switch makes it):
+        an impact that reverses the motion is ``direction=-1``, or it fires again at once.
     terminal : bool
         Stop the integration at this event.
     action : callable or None
@@ -132,6 +138,7 @@ class EventTracker:
         self.g = np.zeros(self.m)
         self.nroot = 0
         self._vector = _shared_vector(events)
+        self._last = None       # (rounding factor, g at the start, g at the end) of the step
 
     def evaluate(self, t, y, yp):
         """Return all event function values at (t, y, yp)."""
@@ -141,11 +148,31 @@ class EventTracker:
             return np.asarray(g_all(t, y, yp), dtype=float)[idx]
         return np.array([float(ev.fun(t, y, yp)) for ev in self.events])
 
-    def reset(self, t, y, yp, unknown=()):
-        """Start tracking at t; events in ``unknown`` get their sign from the next step."""
+    def reset(self, t, y, yp, unknown=(), crossed=None):
+        """Start tracking at t; events in ``unknown`` get their sign from the next step.
+
+        ``crossed``: ``{index: direction}`` of the events that fired at ``t``. Such an event
+        is on the side it crossed to where its value after the actions is zero, of that
+        side's sign, or of the other sign by rounding only (its slope over the step times
+        the time tolerance of the location, a few ulps of t): a crossing back, as a relay's ``der(x) = -sign(x)`` makes it, is then seen,
+        and a step's ``t - t_step`` a few ulps short of zero does not fire twice. A value of
+        the other sign beyond rounding is a function the action switched (a condition a mode
+        changes): its sign comes from the next step.
+        """
+        last = self._last
         self.g = self.evaluate(t, y, yp)
         for i in unknown:
             self.g[i] = 0.0
+        for i, direction in (crossed or {}).items():
+            g = self.g[i]
+            if not direction:
+                self.g[i] = 0.0
+            elif g != 0.0 and (g > 0.0) == (direction > 0):
+                continue
+            elif last is not None and abs(g) <= last[0] * abs(last[2][i] - last[1][i]):
+                self.g[i] = direction * AFTER_CROSSING
+            else:
+                self.g[i] = 0.0
 
     def crossings(self, t_old, t_new, g_new, interp):
         """Return the crossings in (t_old, t_new] as sorted (t, index, direction) tuples.
@@ -168,6 +195,11 @@ class EventTracker:
                     g_old[i] = float(self.events[i].fun(t_probe, y, yp))
         found = []
         g_new = np.asarray(g_new)
+        # for reset: the rounding of g at a located zero is its change over the step times
+        # the location's time tolerance (see _locate) over the step's length, with a margin
+        dt = t_new - t_old
+        xtol = max(4 * UROUND * abs(t_new), 1e-14 * abs(dt), 1e-300)
+        self._last = (16.0 * xtol / dt if dt > 0 else 0.0, g_old, g_new)
         # only the events whose sign changed are looked at one by one: a change makes the
         # product <= 0 (NaN compares false on both tests); the exact test follows
         candidates = (g_old * g_new <= 0.0).nonzero()[0]

@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from pvgraph.errors import InitializationError, SolverError
-from pvgraph.solver.events import (EventTracker, atol_vector, check_times, normalize_events,
-                                   stopping_event)
+from pvgraph.solver.events import (CHATTER_EVENTS, EventTracker, atol_vector, check_times,
+                                   normalize_events, stopping_event)
 from pvgraph.solver.cstep import ADV_END, ADV_PAUSE, make_integrator
 from pvgraph.solver.cstep import c_run as _c_run, c_system_of as _c_system_of
 from pvgraph.solver.ida import SOLVER_NAME, UROUND, initial_step
@@ -258,6 +258,24 @@ def _first_hit(found, event_list, interpolate, records, t_old, t_new):
     return None
 
 
+def _chattering(state, te, fired, event_list, h):
+    """``(first time, count)`` of the actions in a row with no time between them (their zeros
+    apart by rounding only); SolverError once the count reaches CHATTER_EVENTS."""
+    t_first, count, t_last = state if state is not None else (te, 0, te)
+    if te - t_last > 64.0 * UROUND * max(abs(te), abs(h), 1e-300):
+        t_first, count = te, 0
+    count += 1
+    if count >= CHATTER_EVENTS:
+        names = ", ".join(repr(event_list[j].name) for j in fired)
+        raise SolverError(
+            f"{SOLVER_NAME}: event {names} fired {count} times in a row between t = "
+            f"{t_first:.12g} and {te:.12g}, with no time between its zeros: the model switches "
+            f"without end (a sliding mode or Zeno behaviour, e.g. a relay without hysteresis "
+            f"whose switch reverses the motion that triggered it). Give the switch a "
+            f"hysteresis or a smooth law.", t=te)
+    return t_first, count, te
+
+
 def _apply_actions(fired, event_list, te, ye, ype, initialise, mode):
     """The state after the actions of the events ``fired`` at ``te`` (in declaration order),
     made consistent."""
@@ -357,6 +375,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     c_events = tracker is not None and hasattr(integ, "watch_events") and \
         integ.watch_events(tracker)
     records = []
+    chatter = None      # (first time, count, last time) of actions in a row at one instant
     dense = DenseOutput(n) if dense_output else None
     message = "The solver successfully reached the end of the integration interval."
     restart_mode = calc_initial if calc_initial is not None else "algebraic"
@@ -450,7 +469,14 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
                     ts[-1] = t_end
                 break
             integ.reinit(te, ye, ype, t_end)
-            tracker.reset(te, ye, ype, unknown=fired)
+            crossed = {}
+            for rec in reversed(records):
+                if rec.t != te:
+                    break
+                if rec.index in fired:
+                    crossed.setdefault(rec.index, rec.direction)   # the latest crossing
+            tracker.reset(te, ye, ype, crossed=crossed)
+            chatter = _chattering(chatter, te, fired, event_list, integ.hused)
             continue
         if t_end - tn <= END_FUZZ * UROUND * (abs(tn) + abs(integ.hused)):
             break

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from pvgraph.errors import SolverError
 from pvgraph.solver import Event, solve_dae
 
 
@@ -185,3 +186,38 @@ def test_an_action_exactly_at_t_end_gives_the_last_output_its_new_value(t_eval):
                     events=_kicks(3.0, 5.0)[:1], t_eval=t_eval, rtol=1e-8, atol=1e-10)
     assert sol.t[-1] == 3.0 and sol.y[-1, 0] == 1.0     # right-continuous, as other actions
     assert [e.name for e in sol.events] == ["a"]
+
+
+def _relay(hysteresis):
+    """der(x) = -1 in mode "pos", +1 otherwise; the event x - (+-hysteresis) toggles it."""
+    mode = {"pos": True}
+
+    def residual(t, y, yp):
+        return np.array([yp[0] - (-1.0 if mode["pos"] else 1.0)])
+
+    def toggle(t, y, yp):
+        mode["pos"] = not mode["pos"]
+
+    def g(t, y, yp):
+        return y[0] + (hysteresis if mode["pos"] else -hysteresis)
+    return residual, Event(g, direction=0, action=toggle, name="relay")
+
+
+def test_a_relay_with_hysteresis_switches_at_its_thresholds():
+    """der(x) = -sign(x) with a hysteresis of 0.1: from x = 1 it reaches -0.1 at t = 1.1,
+    then runs between -0.1 and +0.1 with switches every 0.2 s (x = +-0.1 at t = 1.1 + 0.2 k):
+    every crossing back after an action is seen."""
+    residual, ev = _relay(0.1)
+    res = solve_dae(residual, (0.0, 2.0), [1.0], [-1.0], events=[ev], rtol=1e-8, atol=1e-10)
+    times = [r.t for r in res.events]
+    np.testing.assert_allclose(times, 1.1 + 0.2 * np.arange(5), atol=1e-8)
+    assert abs(res.y[-1, 0]) <= 0.1 + 1e-8
+
+
+def test_a_relay_without_hysteresis_is_named_as_chattering():
+    """der(x) = -sign(x) has a sliding mode at x = 0 from t = 1 (Zeno for a switched model):
+    the run stops there naming the event, not going on with a wrong sign."""
+    residual, ev = _relay(0.0)
+    with pytest.raises(SolverError, match=r"event 'relay' fired 50 times in a row between "
+                                          r"t = 1 and 1.*sliding mode or Zeno"):
+        solve_dae(residual, (0.0, 2.0), [1.0], [-1.0], events=[ev])
