@@ -288,7 +288,8 @@ def _jacobians(system, op):
 
 
 def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarray] | None,
-              outputs: Sequence[str], *, states: str = "differential") -> LinearModel:
+              outputs: Sequence[str], *, states: str = "differential",
+              direct: Mapping[str, np.ndarray] | None = None) -> LinearModel:
     """Linearise ``system`` at ``op``.
 
     Parameters
@@ -299,8 +300,13 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
         Any unknown or eliminated alias of the system (states, algebraic variables), or an
         exposed-port name of one (:meth:`System.exposed_names`); the model keeps the names as
         given, and its methods also accept the other name of the same variable.
+    direct : mapping name -> array (len(outputs),), optional
+        ``d output / d u`` of each input at fixed unknowns: an output the compiler expressed
+        in an input (a source's own flow ``pump.port.q = -Q``, a drive force holding ``k u``)
+        moves with it directly; added to ``D``.
     """
     inputs = dict(inputs or {})
+    direct = dict(direct or {})
     n = system.n
     x = np.flatnonzero(system.differential)
     z = np.flatnonzero(system.algebraic)
@@ -332,6 +338,9 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
         else:
             C[r] = coef * Zx[pos_z[idx]]
             D[r] = coef * Zu[pos_z[idx]]
+    for j, name in enumerate(inputs):
+        if name in direct:
+            D[:, j] += np.asarray(direct[name], dtype=float).reshape(len(outputs))
     # a shaft angle turning at the operating speed (a cyclic state of the steady state) that
     # acts on nothing and is not asked for is a bare integrator: it is left out of the model
     cyclic = set((op.info or {}).get("cyclic", ()))
@@ -347,9 +356,15 @@ def input_sensitivity(build: Callable[[dict], object], u0: Mapping[str, float], 
                       op: OperatingPoint, *, eps_rel: float = 1e-5,
                       du: float | None = None) -> np.ndarray:
     """``dF/du`` of input ``name`` by central differences of rebuilt systems at ``op``."""
+    return _input_derivatives(build, u0, name, op, (), eps_rel, du)[0]
+
+
+def _input_derivatives(build, u0, name, op, outputs, eps_rel=1e-5, du=None):
+    """``(dF/du, d outputs/du at fixed unknowns)`` of input ``name`` by central differences
+    of rebuilt systems at ``op``."""
     u0 = dict(u0)
     h = du if du is not None else eps_rel * (abs(u0[name]) if u0[name] != 0.0 else 1.0)
-    cols = []
+    cols, outs = [], []
     for sign in (1.0, -1.0):
         u = dict(u0)
         u[name] = u0[name] + sign * h
@@ -358,7 +373,12 @@ def input_sensitivity(build: Callable[[dict], object], u0: Mapping[str, float], 
             raise PvgraphError(f"changing input {name!r} changed the unknowns of the compiled "
                                f"system; linearise a build whose structure does not depend on it")
         cols.append(s.residual(op.t, op.y, op.yp))
-    return (cols[0] - cols[1]) / (2.0 * h)
+        values = []
+        for out in outputs:
+            coef, idx, off = s.resolve(out)
+            values.append(off + (0.0 if idx is None else coef * op.y[idx]))
+        outs.append(np.array(values, dtype=float))
+    return (cols[0] - cols[1]) / (2.0 * h), (outs[0] - outs[1]) / (2.0 * h)
 
 
 def _as_system(target):
@@ -378,6 +398,8 @@ def linearize_circuit(build: Callable[[dict], object], u0: Mapping[str, float],
     if op is None:
         op = steady_state(system, y0=y0, tol=tol)
     du = dict(du or {})
-    cols = {nm: input_sensitivity(build, u0, nm, op, eps_rel=eps_rel, du=du.get(nm))
-            for nm in u0}
-    return linearize(system, op, cols, outputs)
+    cols, direct = {}, {}
+    for nm in u0:
+        cols[nm], direct[nm] = _input_derivatives(build, u0, nm, op, list(outputs), eps_rel,
+                                                  du.get(nm))
+    return linearize(system, op, cols, outputs, direct=direct)

@@ -263,3 +263,39 @@ def test_step_info_default_grid_resolves_a_fast_response_beside_a_cancelled_slow
     assert info["RiseTime"] == pytest.approx(ref["RiseTime"], abs=1e-4)
     assert info["SettlingTime"] == pytest.approx(ref["SettlingTime"], abs=1e-4)
     assert info["Overshoot"] == pytest.approx(ref["Overshoot"], rel=1e-3)
+
+
+def test_an_output_the_compiler_expressed_in_the_input_keeps_its_feedthrough():
+    """The source's own port flow is -Q exactly (D = -1); the orifice's flow follows Q at DC
+    (gain 1). A position input u on a 500 N/m spring and a 100 N/m spring to a damped mass:
+    the drive force is -(500 + 100) u + 100 x_B, so D = -600 and the DC gain -500."""
+    from pvgraph.components import Orifice
+
+    def bench(u):
+        c = Circuit("demo")
+        pump = c.add("pump", FlowSource(Q=u["pump.Q"]))
+        node = c.add("node", VolumeNode(V=5e-4))
+        orifice = c.add("orifice", Orifice(A=2e-6))
+        tank = c.add("tank", Tank())
+        c.connect(pump.port, node.port, orifice.a)
+        c.connect(orifice.b, tank.port)
+        return c
+    lm = linearize_circuit(bench, {"pump.Q": 1e-4}, ["pump.port.q", "orifice.a.q"])
+    np.testing.assert_allclose(lm.D.ravel(), [-1.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(lm.dc_gain().ravel(), [-1.0, 1.0], rtol=1e-8)
+
+    from pvgraph.components import Mass, PositionInput, TwoFlangeSpring  # noqa: E402
+
+    def drive(u):
+        c = Circuit("drive")
+        ps, k = c.add("ps", PositionInput()), c.add("k", Constant(k=u["k.k"]))
+        ground = c.add("sp", LinearSpring(k=500.0))
+        link, body = c.add("sp2", TwoFlangeSpring(k=100.0)), c.add("B", Mass(m=1.0))
+        damper = c.add("d", Damper(d=5.0))
+        c.connect(k.y, ps.u)
+        c.connect(ps.flange, ground.flange, link.a)
+        c.connect(link.b, body.flange, damper.flange)
+        return c
+    lm = linearize_circuit(drive, {"k.k": 0.01}, ["ps.flange.f"])
+    assert lm.D.ravel()[0] == pytest.approx(-600.0, rel=1e-7)
+    assert lm.dc_gain().ravel()[0] == pytest.approx(-500.0, rel=1e-7)
