@@ -314,7 +314,14 @@ class Circuit:
                              f"(also the values of PVGRAPH_BACKEND)")
         if backend == "c" and options.get("array_rows") is None:
             options["array_rows"] = False      # C evaluates every row as straight-line code
-        system = self._compile(compile_circuit, options)
+        try:
+            system = self._compile(compile_circuit, options)
+        except CircuitError as exc:
+            origin = getattr(self, "_origin", None)     # a circuit read from a model file
+            port = re.search(r"port '([^']+)'", str(exc))
+            if origin is None or port is None:
+                raise
+            raise type(exc)(f"{origin(port.group(1))}: {exc}") from None
         return system.use_backend(backend) if system.backend != backend else system
 
     def _compile(self, compile_circuit, options):

@@ -36,6 +36,7 @@ An error names the file and the line of the entry at fault.
 
 from __future__ import annotations
 
+import functools
 import importlib
 import json
 import math
@@ -382,7 +383,18 @@ def from_dict(data: dict, *, modules: Iterable[str] = (), text: str = "",
     loader = _Loader(text, source, modules)
     root = CircuitEntry(type="Circuit", components=model.components,
                         connections=model.connections, expose=model.expose)
-    return loader.node(model.name, root, ())
+    circuit = loader.node(model.name, root, ())
+    circuit._origin = functools.partial(_where, text, source)   # for the compiler's messages
+    return circuit
+
+
+def _where(text: str, source: str, label: str) -> str:
+    """``"FILE, line N (components.orifice)"``: where the component of the port ``label``
+    (``"bench.orifice.b"``) is written."""
+    path = label.split(".")[:-1]
+    loc = tuple(k for name in path for k in ("components", name))
+    line = _line_of(text, loc) if loc else None
+    return source + (f", line {line}" if line else "") + (f" ({'.'.join(loc)})" if loc else "")
 
 
 def _relevant_error(errors: list, data) -> dict:
@@ -401,18 +413,38 @@ def _relevant_error(errors: list, data) -> dict:
     return min(relevant, key=lambda e: len(e["loc"]))
 
 
+class _DuplicateKey(Exception):
+    """A key repeated in one JSON object."""
+
+
+def _unique_keys(pairs):
+    out = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateKey(key)
+        out[key] = value
+    return out
+
+
 def loads(text: str, fmt: str = "toml", *, modules: Iterable[str] = (),
           source: str = "<model>") -> Circuit:
     """The circuit of a model file's text (``fmt`` "toml" or "json")."""
     try:
         if fmt == "json":
-            data = json.loads(text)
+            data = json.loads(text, object_pairs_hook=_unique_keys)
         elif fmt == "toml":
             data = tomllib.loads(text)
         else:
             raise ModelFileError(f"unknown model file format {fmt!r}; choose toml or json")
     except json.JSONDecodeError as exc:
         raise ModelFileError(f"{source}, line {exc.lineno}: not valid JSON: {exc.msg}") from None
+    except _DuplicateKey as exc:
+        key = json.dumps(exc.args[0])
+        hits = [m.start() for m in re.finditer(re.escape(key) + r"\s*:", text)]
+        line = f", line {text.count(chr(10), 0, hits[1]) + 1}" if len(hits) > 1 else ""
+        raise ModelFileError(f"{source}{line}: the key {key} is given twice in one object "
+                             f"(JSON keeps the last silently; name each component and "
+                             f"parameter once)") from None
     except tomllib.TOMLDecodeError as exc:
         m = re.search(r"\(at line (\d+)", str(exc))
         line = f", line {m.group(1)}" if m else ""

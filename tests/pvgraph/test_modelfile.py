@@ -135,3 +135,26 @@ def test_a_bad_port_in_a_connection_list_of_many_lines_names_its_own_line():
     with pytest.raises(ModelFileError, match=rf"demo.toml, line {line} \(connections.1\): "
                                              rf"Tank 'tank' has no port 'prt'"):
         loads(bad, source="demo.toml")
+
+
+def test_a_key_given_twice_in_a_json_file_is_refused_with_its_line():
+    """JSON keeps the last of two equal keys silently (TOML refuses them): two "pump"
+    components, or A given twice, are named at the line of the second."""
+    text = json.dumps({"format": 1, "name": "x", "components": {
+        "tank": {"type": "Tank", "params": {"p0": 0.0}}}}, indent=1)
+    twice = text.replace('"p0": 0.0', '"p0": 0.0,\n    "p0": 1.0')
+    line = next(k + 1 for k, row in enumerate(twice.splitlines()) if '"p0": 1.0' in row)
+    with pytest.raises(ModelFileError, match=rf'x.json, line {line}: the key "p0" is given twice'):
+        loads(twice, "json", source="x.json")
+
+
+def test_an_unconnected_port_of_a_file_names_the_file_and_the_component_line():
+    from pvgraph.errors import CircuitError
+    text = dumps(loads(TEXT), "toml")
+    cut = "\n".join(row for row in text.splitlines() if '"tank.port"' not in row)
+    line = next(k + 1 for k, row in enumerate(cut.splitlines())
+                if row.startswith("[components.orifice]"))
+    circuit = loads(cut, source="demo.toml")
+    with pytest.raises(CircuitError, match=rf"demo.toml, line {line} \(components.orifice\): "
+                                           rf"port 'orifice.b' \(hydraulic\) is not connected"):
+        circuit.compile()
