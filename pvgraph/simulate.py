@@ -71,7 +71,17 @@ class Solution:
     def der(self, name: str) -> np.ndarray:
         """Time derivative of a variable over the run."""
         if name in self.system.observed:
-            return np.gradient(self[name], self.t)
+            # by differences within each stretch between events (an event repeats its time:
+            # the values before and after it are two sides, not a difference over dt = 0)
+            values, t = self[name], self.t
+            out = np.zeros(len(t))
+            cuts = np.flatnonzero(np.diff(t) <= 0.0) + 1
+            for seg in np.split(np.arange(len(t)), cuts):
+                if len(seg) > 1:
+                    out[seg] = np.gradient(values[seg], t[seg])
+                elif len(seg) == 1 and len(t) > 1:    # one point between two events
+                    out[seg] = np.nan
+            return out
         coef, idx, _ = self.system.resolve(name)
         if idx is None:
             return np.zeros(len(self.t))

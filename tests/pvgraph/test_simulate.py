@@ -310,3 +310,23 @@ def test_a_step_at_t_end_has_its_new_value_there(solver):
     sol = simulate(system, 1.0, solver=solver)
     assert sol.final("sum.y") == 3.0
     assert "s2.step" in [e.name for e in sol.events]
+
+
+def test_the_derivative_of_a_derived_output_is_one_sided_at_an_event():
+    """A 6 L/min flow step at t = 0.1 s into a volume drained by an orifice: the output times
+    repeat 0.1 (before and after the step). d(q_orifice)/dt is 0 before (nothing flows) and
+    positive after, never a difference over dt = 0."""
+    from pvgraph.components import FlowInput, Orifice, Step, Tank, VolumeNode
+    c = Circuit("step_in")
+    st, fi = c.add("st", Step(height=1e-4, t_step=0.1)), c.add("fi", FlowInput())
+    node, orifice = c.add("n", VolumeNode(V=5e-4)), c.add("o", Orifice(A=2e-6))
+    tank = c.add("t", Tank())
+    c.connect(st.y, fi.u)
+    c.connect(fi.port, node.port, orifice.a)
+    c.connect(orifice.b, tank.port)
+    sol = simulate(c, 0.5)
+    d = sol.der("o.q")
+    assert np.all(np.isfinite(d))
+    at = np.flatnonzero(sol.t == 0.1)
+    assert len(at) == 2
+    assert abs(d[at[0]]) < 1e-12 and d[at[1]] > 0.0
