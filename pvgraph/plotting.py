@@ -129,7 +129,7 @@ def _layered_positions(nodes, edges, groups):
                                         / max(1, sum(1 for m in g[n] if m in pos)))
                          if any(m in pos for m in g[n]) else y0)
             for k, n in enumerate(members):
-                pos[n] = (float(x), -(y0 + k + 0.5 * (height - len(members))))
+                pos[n] = (float(x), -(y0 + 0.5 + k + 0.5 * (height - len(members))))
         spans[grp] = (y0, y0 + height)
         y0 += height + 0.8
     return pos, spans

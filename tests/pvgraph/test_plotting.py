@@ -84,3 +84,17 @@ def test_schematic_groups_sub_circuits_and_styles_domains(tmp_path):
     with open(svg) as f:
         assert "<svg" in f.read()
     _png(draw_circuit(outer, tmp_path / "o.png"))
+
+
+def test_every_part_of_a_sub_circuit_lies_inside_its_band():
+    """The band drawn for a sub-circuit spans [-(y0 + height) + 0.1, -y0 - 0.1]: each member's
+    centre lies inside it, with half a row to spare from its edges."""
+    from pvgraph.plotting import _layered_positions, _schematic
+    outer = Circuit("outer")
+    outer.add("bench", _demo())
+    outer.add("rig", _demo())
+    nodes, edges, groups = _schematic(outer)
+    pos, spans = _layered_positions(nodes, edges, groups)
+    for n, (_, _, grp) in nodes.items():
+        top, bottom = spans[grp]
+        assert -bottom + 0.5 - 1e-12 <= pos[n][1] <= -top - 0.5 + 1e-12, (n, pos[n], spans[grp])
