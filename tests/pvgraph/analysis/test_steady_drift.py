@@ -8,11 +8,15 @@ w2 = w1 r1 / r2, rack force T / r1."""
 import numpy as np
 import pytest
 
-from pvgraph import Circuit
+from pydantic import Field
+
+import pvgraph.expr as E
+from pvgraph import Circuit, Component, Mechanical, Params
 from pvgraph.analysis import steady_state
-from pvgraph.analysis.linearize import linearize
+from pvgraph.analysis.linearize import linearize, linearize_circuit
 from pvgraph.components.mechanical import (Inertia, Mass, RackPinion, ShaftSpringDamper,
                                            TorqueSource)
+from pvgraph.components.mechanical.rotational import Rotational
 from pvgraph.errors import InitializationError
 
 J1, J2, T, B = 0.1, 0.4, 2.0, 0.01
@@ -20,9 +24,9 @@ K_SH, D_SH = 100.0, 1.0
 R1, R2 = 0.05, 0.02
 
 
-def two_inertias(b=B):
+def two_inertias(b=B, torque=T):
     c = Circuit("two")
-    ts = c.add("ts", TorqueSource(T=T))
+    ts = c.add("ts", TorqueSource(T=torque))
     i1 = c.add("i1", Inertia(J=J1))
     i2 = c.add("i2", Inertia(J=J2, b=b))
     sh = c.add("sh", ShaftSpringDamper(k=K_SH, d=D_SH))
@@ -178,3 +182,40 @@ def test_a_torque_on_inertias_without_friction_has_no_steady_state():
     assert "a torque on a free inertia" in str(err.value)
     with pytest.raises(InitializationError, match="no steady state found"):
         steady_state(two_inertias(b=0.0).compile())
+
+
+def test_linearize_circuit_gives_the_speed_gain_of_the_torque():
+    """d w / d T = 1 / b in steady state, through the spring: DC gain 100 rad/s per N m."""
+    model = linearize_circuit(lambda u: two_inertias(torque=u["T"]), {"T": T},
+                              ["i1.w", "i2.w"])
+    np.testing.assert_allclose(model.dc_gain()[:, 0], [1.0 / B, 1.0 / B], rtol=1e-6)
+    assert len(model.poles()) == 3 and np.all(model.poles().real < 0.0)
+
+
+class CrankParams(Params):
+    r: float = Field(..., gt=0.0, description="Crank radius [m]")
+
+
+class Crank(Component):
+    """Ideal crank ``x = r sin(phi)``: the slider oscillates, so the shaft cannot turn at a
+    steady speed (the torque it takes varies with the angle)."""
+
+    Params = CrankParams
+    ports = {"shaft": Rotational("crank shaft"), "flange": Mechanical("slider")}
+
+    def equations(self, v, p):
+        return [v.flange.x - p.r * E.sin(v.shaft.phi),
+                v.shaft.tau + p.r * E.cos(v.shaft.phi) * v.flange.f]
+
+
+def test_a_crank_is_no_drift_direction():
+    """The angle enters through sin(phi): turning it changes F, so no steady state exists."""
+    c = Circuit("crank")
+    ts = c.add("ts", TorqueSource(T=0.5))
+    i = c.add("i", Inertia(J=0.01, b=0.01))
+    cr = c.add("cr", Crank(r=0.1))
+    m = c.add("m", Mass(m=2.0, b=10.0))
+    c.connect(ts.shaft, i.shaft, cr.shaft)
+    c.connect(cr.flange, m.flange)
+    with pytest.raises(InitializationError, match="no steady state found"):
+        steady_state(c.compile())
