@@ -341,15 +341,11 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
     for j, name in enumerate(inputs):
         if name in direct:
             D[:, j] += np.asarray(direct[name], dtype=float).reshape(len(outputs))
-    # a shaft angle turning at the operating speed (a cyclic state of the steady state) that
-    # acts on nothing and is not asked for is a bare integrator: it is left out of the model
-    cyclic = set((op.info or {}).get("cyclic", ()))
-    keep = [r for r, k in enumerate(x) if not (system.names[k] in cyclic and
-                                               not A[:, r].any() and not C[:, r].any())]
-    if len(keep) < nx:
-        A, B, C, x = A[np.ix_(keep, keep)], B[keep], C[:, keep], x[keep]
-    return LinearModel(A, B, C, D, [system.names[k] for k in x], list(inputs), list(outputs),
-                       op)
+    # the steady drift of a turning machine (its shafts' common angle) that no output reads is
+    # a bare integrator: it is taken out of the model (a joined shaft keeps its twist)
+    from .steady import reduce_drift
+    A, B, C, x, state_names = reduce_drift(op, A, B, C, x)
+    return LinearModel(A, B, C, D, state_names, list(inputs), list(outputs), op)
 
 
 def input_sensitivity(build: Callable[[dict], object], u0: Mapping[str, float], name: str,

@@ -1,14 +1,20 @@
-"""Steady operating points: solve F(t, y, 0) = 0.
+"""Steady operating points: solve F(t, y, y') = 0 with y' = 0, or at a steady rate of turning.
 
 Newton's method with a backtracking line search on the scaled residual, using the exact
 Jacobian ``dF/dy`` of the compiled system. If Newton stalls, pseudo-transient continuation
 follows the circuit's own dynamics (implicit Euler steps of growing size ``dtau``, the Jacobian
 ``dF/dy + dF/dy'/dtau``) towards an equilibrium and Newton is tried again from there.
 
-Cyclic coordinates: an angle [rad] that enters the equations only through its derivative (a
-shaft turning at a steady speed, ``der(phi) = w``) has no steady value, only a steady rate. Such states are found from the Jacobian (a zero column of ``dF/dy`` with a non-zero
-column of ``dF/dy'``); for them the unknown is the rate ``y'`` and the value stays at its
-start, so a pump on a ``SpeedSource`` or a motor turning an inertia has an operating point.
+Turning machines: a shaft turning at a steady speed has no steady angle, only a steady rate.
+A drift direction ``d`` is a motion of the unknowns that leaves F unchanged (``dF/dy d = 0``
+at the start and at two nearby points) and turns an angle [rad], moving only angles and
+positions [m]: one shaft (``d`` = its angle), shafts joined by springs, dampers or gears (the
+common rotation, in the gear ratios), a rack driven by a pinion. At the operating point the
+unknowns drift along ``d`` at a steady rate (``y' = G v``, ``y'' = 0``) while every other
+unknown stays constant; the unknowns solved for are the rates ``v`` at one pivot angle per
+direction (held at its start value) and every other unknown (a second angle settles at its
+twist). A pump on a ``SpeedSource``, a motor turning an inertia or a gear train has an
+operating point; a torque on a free inertia still has none.
 
 Scaling: variables by ``system.nominal``; residual rows by ``max_j |dF_i/dy_j| nominal_j`` at
 the start point (the size of the row's terms), so the tolerance is relative.
@@ -31,8 +37,10 @@ __all__ = ["OperatingPoint", "steady_state"]
 class OperatingPoint:
     """A steady state of ``system``: ``y`` with ``yp = 0``; ``op["name"]`` looks up by name.
 
-    ``info["cyclic"]`` names the states that only enter through their rate (shaft angles): for
-    them ``yp`` holds the steady rate and ``y`` the start value; sensitivities hold them fixed.
+    On a turning machine ``yp`` holds the steady rates of the drifting angles (and positions
+    tied to them); ``info["cyclic"]`` names one pivot angle per drift direction (held at its
+    start value; sensitivities hold it fixed) and ``info["drift"]`` gives each direction as
+    ``{name: coefficient}`` with 1 at its pivot (``yp = coefficient * yp[pivot]``).
     """
 
     y: np.ndarray
@@ -65,14 +73,28 @@ class OperatingPoint:
         Fp = s.parameter_jacobian(self.t, self.y, self.yp, params)
         return self.solve_linear(-Fp)
 
+    def drift_matrix(self):
+        """``(G, piv)``: the drift directions as columns of ``G`` (n, m), each 1 at its pivot
+        angle ``piv[k]`` (``info["cyclic"]``); ``yp = G yp[piv]`` at this point."""
+        names = self.system.names
+        cyc = np.array([names.index(nm) for nm in self.info.get("cyclic", ())], dtype=np.intp)
+        G = np.zeros((self.system.n, len(cyc)))
+        drift = self.info.get("drift") or [{names[j]: 1.0} for j in cyc]
+        for k, d in enumerate(drift):
+            for nm, v in d.items():
+                G[names.index(nm), k] = v
+        return G, cyc
+
     def solve_linear(self, rhs) -> np.ndarray:
         """Solve ``F_y X = rhs`` with the steady Jacobian ``F_y = dF/dy`` at this point."""
         s = self.system
         if self.info.get("cyclic"):
-            # the rates of cyclic states stand in for their values, which stay put (dy = 0)
-            cyc = [s.names.index(nm) for nm in self.info["cyclic"]]
+            # the steady rates of the drift directions stand in for the pivot angles, which
+            # stay put (dy = 0 there)
+            G, cyc = self.drift_matrix()
             J = s.jacobian_dense(self.t, self.y, self.yp, 0.0)
-            J[:, cyc] = (s.jacobian_dense(self.t, self.y, self.yp, 1.0) - J)[:, cyc]
+            Jyp = s.jacobian_dense(self.t, self.y, self.yp, 1.0) - J
+            J[:, cyc] = Jyp @ G
             x = np.linalg.solve(J, rhs)
             x[cyc] = 0.0
             return x
@@ -99,23 +121,37 @@ class OperatingPoint:
         return np.array(rows).reshape(len(rows), S.shape[1])
 
 
-class _CyclicView:
-    """``system`` with the rates of its cyclic states as unknowns in place of their values."""
+class _DriftView:
+    """``system`` with the steady rates of its drift directions as unknowns.
 
-    def __init__(self, system, cyc, y_start):
-        self._s, self.cyc = system, cyc
-        self.y_fix = np.asarray(y_start, dtype=float)[cyc].copy()
+    ``G`` (n, m) holds the drift directions, each with coefficient 1 at its pivot unknown
+    ``piv[k]`` (an angle). The unknowns ``z`` are ``y`` except ``z[piv]``, the pivots' rates:
+    ``y' = G z[piv]`` (plus the pseudo-time rate of the others during continuation) and
+    ``y[piv]`` stays at its start value; the other unknowns of a direction (a second angle
+    joined by a spring or a gear, a rack's position) are solved for.
+    """
+
+    def __init__(self, system, G, piv, y_start):
+        self._s, self.G, self.cyc = system, np.asarray(G, dtype=float), np.asarray(piv)
+        self.y_fix = np.asarray(y_start, dtype=float)[self.cyc].copy()
         self.n, self.equations = system.n, system.equations
         self.names = list(system.names)
-        for j in cyc:
+        for j in self.cyc:
             self.names[j] = f"der({system.names[j]})"
         self.nominal = np.asarray(system.nominal, dtype=float)
+        self.DENSE_MAX = getattr(system, "DENSE_MAX", np.inf)
+        n = system.n
+        self._keep = np.ones(n)
+        self._keep[self.cyc] = 0.0
+        rows, k = np.nonzero(self.G)
+        self._Gs = sp.csr_matrix((self.G[rows, k], (rows, self.cyc[k])), shape=(n, n))
 
     def split(self, z, zp=None):
-        """``(y, y')`` of the system for the unknowns ``z`` (rates of cyclic states held)."""
+        """``(y, y')`` of the system for the unknowns ``z`` (drift rates at the pivots)."""
         y = np.array(z, dtype=float)
         yp = np.zeros(self.n) if zp is None else np.array(zp, dtype=float)
-        yp[self.cyc] = y[self.cyc]
+        yp[self.cyc] = 0.0
+        yp += self.G @ y[self.cyc]
         y[self.cyc] = self.y_fix
         return y, yp
 
@@ -128,8 +164,14 @@ class _CyclicView:
         J0 = self._s.jacobian_dense(t, y, yp, 0.0)
         Jyp = self._s.jacobian_dense(t, y, yp, 1.0) - J0
         J = J0 + c * Jyp
-        J[:, self.cyc] = Jyp[:, self.cyc]
+        J[:, self.cyc] = Jyp @ self.G
         return J
+
+    def jacobian(self, t, z, zp, c):
+        y, yp = self.split(z, zp)
+        J0 = sp.csr_matrix(self._s.jacobian(t, y, yp, 0.0))
+        Jyp = sp.csr_matrix(self._s.jacobian(t, y, yp, 1.0)) - J0
+        return sp.csr_matrix((J0 + c * Jyp) @ sp.diags(self._keep) + Jyp @ self._Gs)
 
 
 def _sparse(system) -> bool:
@@ -150,23 +192,83 @@ def _nonzero_columns(J) -> np.ndarray:
     return np.any(J != 0.0, axis=0)
 
 
-def _cyclic_states(system, t, y) -> np.ndarray:
-    """Angles [rad] entering F only through their derivative (at y and at a nearby point).
+def _drift_directions(system, t, y):
+    """Directions ``d`` along which the unknowns may move at a steady rate: ``F(t, y + s d,
+    y')`` does not depend on ``s`` (``dF/dy d = 0`` at ``y`` and at two nearby points), ``d``
+    holds an angle [rad] and only angles and positions [m] (a shaft turning for ever, a
+    second shaft joined to it by a spring or a gear, a rack it drives).
 
-    Only angles: a pressure or a position rising for ever is no operating point.
+    Only angles: a pressure or a position rising for ever on its own is no operating point.
+    Returns ``(G, piv)``: ``G`` (n, m) the directions, each 1 at its pivot angle ``piv[k]``
+    (a differential state where possible).
     """
     n = system.n
-    angle = np.array([u == "rad" for u in system.units], dtype=bool)
+    units = list(system.units)
+    angle = np.array([u == "rad" for u in units], dtype=bool)
+    none = (np.zeros((n, 0)), np.zeros(0, dtype=np.intp))
     if not angle.any():
-        return np.zeros(0, dtype=np.intp)
-    zero = np.zeros(n)
-    J0 = _jacobian(system, t, y, zero, 0.0)
-    Jyp = _jacobian(system, t, y, zero, 1.0) - J0
+        return none
+    cand = np.flatnonzero(angle | np.array([u == "m" for u in units], dtype=bool))
     scale = np.where(system.nominal > 0, system.nominal, 1.0)
-    shift = 1e-3 * scale * np.cos(np.arange(n) + 0.5)
-    J1 = _jacobian(system, t, y + shift, zero, 0.0)
-    flat = ~_nonzero_columns(J0) & ~_nonzero_columns(J1)
-    return np.flatnonzero(flat & angle & _nonzero_columns(Jyp))
+    zero = np.zeros(n)
+    wave = np.cos(np.arange(n) + 0.5)
+    points = [(y, zero), (y + 1e-3 * scale * wave, 1e-3 * scale * np.sin(np.arange(n) + 0.5)),
+              (y + np.where(angle, 0.37 * wave, 0.0), zero)]
+    blocks, Jyp = [], None
+    for k, (yy, ypp) in enumerate(points):
+        try:
+            J0 = _jacobian(system, t, yy, ypp, 0.0)
+            if k == 0:
+                Jyp = _jacobian(system, t, yy, ypp, 1.0) - J0
+        except (ArithmeticError, ValueError, PvgraphError):
+            continue
+        Jc = J0[:, cand]
+        Jc = Jc.toarray() if sp.issparse(Jc) else np.asarray(Jc)
+        if np.all(np.isfinite(Jc)):
+            blocks.append(Jc)
+    if not blocks:
+        return none
+    Jc = np.vstack(blocks) * scale[cand][None, :]
+    Jc = Jc[np.any(Jc != 0.0, axis=1)]
+    Jc = Jc / np.max(np.abs(Jc), axis=1, keepdims=True) if len(Jc) else Jc
+    if len(Jc):
+        _, sv, Vt = np.linalg.svd(Jc, full_matrices=True)
+        rank = int(np.sum(sv > 1e-9 * sv[0])) if sv.size and sv[0] > 0 else 0
+        N = Vt[rank:].T                                  # null space, scaled coordinates
+    else:
+        N = np.eye(len(cand))
+    if N.shape[1] == 0:
+        return none
+    # keep the directions that turn an angle (a position drifting alone is no steady state)
+    ang = angle[cand]
+    if not ang.any():
+        return none
+    _, sa, Wt = np.linalg.svd(N[ang], full_matrices=True)
+    m = int(np.sum(sa > 1e-6))
+    if m == 0:
+        return none
+    D = N @ Wt[:m].T * scale[cand][:, None]               # back to unknowns' units
+    D[np.abs(D) < 1e-12 * np.max(np.abs(D), axis=0, keepdims=True)] = 0.0
+    # pivots: angles, differential states first, chosen by column-pivoted QR
+    from scipy.linalg import qr
+    rows = np.flatnonzero(ang)
+    diff = np.asarray(getattr(system, "differential", np.ones(n, bool)), bool)[cand[rows]]
+    weight = np.where(diff, 1.0, 1e-3) / scale[cand[rows]]
+    _, _, perm = qr((D[rows] * weight[:, None]).T, pivoting=True, mode="economic")
+    prow = rows[perm[:m]]
+    G_c = D @ np.linalg.inv(D[prow])
+    G_c[np.abs(G_c) < 1e-12] = 0.0
+    G = np.zeros((n, m))
+    G[cand] = G_c
+    piv = cand[prow]
+    # a direction must reach the equations through its rate, or nothing fixes the rate
+    if Jyp is not None:
+        JG = Jyp @ G
+        JG = np.asarray(JG)
+        ok = np.any(JG != 0.0, axis=0)
+        G, piv = G[:, ok], piv[ok]
+    order = np.argsort(piv)
+    return G[:, order], piv[order]
 
 
 class _Scaled:
@@ -342,8 +444,8 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
     y = _full_vector(system, system.y0 if y0 is None else y0, "y0")
     if system.n == 0:
         return OperatingPoint(y, np.zeros(0), system, t, 0.0, 0, "trivial")
-    cyc = _cyclic_states(system, t, y)
-    problem = _CyclicView(system, cyc, y) if len(cyc) else system
+    G, cyc = _drift_directions(system, t, y)
+    problem = _DriftView(system, G, cyc, y) if len(cyc) else system
     if len(cyc):
         y[cyc] = 0.0                      # the unknowns there are the rates
     sc = _Scaled(problem, t, y)
@@ -361,12 +463,16 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
             f"{system.name}: no steady state found (scaled residual {fn:.3g} > {tol:g} after "
             f"{total} iterations; Newton{' and continuation' if continuation else ''} failed). "
             f"Largest residuals:\n" + "\n".join(lines) +
-            "\nCheck that every volume has an outlet and every mass a restoring force.")
+            "\nCheck that every volume has an outlet and every mass a restoring force" +
+            (" (or, on a turning shaft, a friction or load torque: a torque on a free inertia "
+             "speeds it up for ever)." if any(u == "rad" for u in system.units) else "."))
     yp1 = np.zeros(system.n)
     info = {}
     if len(cyc):
         y1, yp1 = problem.split(y1)
         info["cyclic"] = [system.names[j] for j in cyc]
+        info["drift"] = [{system.names[i]: float(G[i, k]) for i in np.flatnonzero(G[:, k])}
+                         for k in range(len(cyc))]
     _check_pressures(system, y1)
     return OperatingPoint(y1, yp1, system, t, fn, total, method, info)
 
@@ -388,3 +494,47 @@ def _check_pressures(system, y):
             f"bar): {listed}. A flow source or pump feeding a closed valve or a dead end holds "
             f"a steady state only through leakage; add a relief valve or an outlet."),
             stacklevel=3)
+
+
+def reduce_drift(op: OperatingPoint, A, B, C, x):
+    """Take the steady drift of a turning machine out of a linear model ``x' = A x + B u``,
+    ``y = C x`` at ``op`` (``x`` the indices of the states in ``op.system``).
+
+    A drift direction ``d`` (``op.info["drift"]``) is a zero-eigenvalue mode, ``A d = 0``:
+    the whole machine turned by an angle is again a steady state. Where the outputs do not
+    see it (``C d = 0``), the state ``x_p`` of the pivot is dropped and the others become
+    ``x_i - (d_i / d_p) x_p``: a shaft joined to another by a spring keeps its twist
+    ``phi1 - phi2``, a bare angle (``d = e_p``) just leaves the model.
+    Returns ``(A, B, C, x, names)``.
+    """
+    system = op.system
+    names = [system.names[k] for k in x]
+    A, B, C, x = np.array(A, float), np.array(B, float), np.array(C, float), np.asarray(x)
+    if not op.info.get("cyclic"):
+        return A, B, C, x, names
+    G, _ = op.drift_matrix()
+    for k in range(G.shape[1]):
+        d = G[x, k]
+        if not np.any(d):
+            continue
+        size = np.linalg.norm(d)
+        if (np.linalg.norm(A @ d) > 1e-8 * max(np.linalg.norm(A), 1.0) * size
+                or np.linalg.norm(C @ d) > 1e-12 * max(np.linalg.norm(C), 1.0) * size):
+            continue              # not a mode of this model, or an output reads the angle
+        p = int(np.argmax(np.abs(d) * np.asarray(system.differential, float)[x]))
+        if d[p] == 0.0:
+            continue
+        ratio = d / d[p]
+        keep = np.array([r for r in range(len(x)) if r != p], dtype=np.intp)
+        A = (A - np.outer(ratio, A[p]))[np.ix_(keep, keep)]
+        B = (B - np.outer(ratio, B[p]))[keep]
+        C = C[:, keep]
+        pname = names[p]
+        for r in np.flatnonzero(ratio):
+            if r != p:
+                f = ratio[r]
+                names[r] = (f"{names[r]} - {pname}" if f == 1.0 else
+                            f"{names[r]} - {f:.6g}*{pname}")
+        names = [names[r] for r in keep]
+        x = x[keep]
+    return A, B, C, x, names
