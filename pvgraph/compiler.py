@@ -65,7 +65,9 @@ class VarInfo:
     description: str
     owner: str
     start_priority: int = 0  # 0 class default, 1 from parameters, 2 set by the user
-    given: int = 0  # 0 a default start, 1 from a parameter given a non-default value, 2 start=
+    # not a field (set on the few instances it applies to): 0 a default start value, 1 from a
+    # parameter given a non-default value, 2 set by ``start=``
+    given = 0
 
 
 @dataclass
@@ -311,7 +313,9 @@ def _declare_variables(path, comp, infos, registry, specs=None, given=None):
         if told and given is not None and (told == 2 or start != 0.0 or
                                            defaults.get(key) is not _NO_DEFAULT):
             given[name] = start
-        infos[name] = VarInfo(name, unit, start, nominal, desc, path, prio, told)
+        info = infos[name] = VarInfo(name, unit, start, nominal, desc, path, prio)
+        if told:
+            info.given = told
 
 
 _NO_DEFAULT = object()
@@ -1228,7 +1232,8 @@ def _set_start(infos, elim, keep, coef, off):
             _start_conflict(ik, ie, coef, off, keep_elim=True)
         ik.start = (ie.start - off) / coef
         ik.start_priority = max(ik.start_priority, ie.start_priority)
-        ik.given = ie.given
+        if ik.given != ie.given:
+            ik.given = ie.given
     elif ie.given and ik.given:
         _start_conflict(ik, ie, coef, off, keep_elim=False)
     ie.start = coef * ik.start + off

@@ -42,9 +42,14 @@ watches its determinant: if it falls below ``PIVOT_RATIO`` of its start value th
 would have to change, and the run stops with a :class:`~pvgraph.errors.SolverError` naming the
 dummy derivatives, the states and the time (states are not switched during a run).
 
-The start values a user gives must satisfy the constraints that were hidden in the original
-equations; after reduction they are checked by solving for consistent values at ``t = 0`` with the
-chosen states held, and a conflict is reported with the values the constraints force.
+The start values a user gives (parameters such as ``x0``, ``v0``, ``w0`` that differ from their
+defaults, ``start=`` entries, ``simulate(start=...)``, runtime parameters) must satisfy the
+constraints that were hidden in the original equations. A given value on a chosen state holds
+it; a given value on a variable the constraints determine (a velocity whose derivative became a
+dummy, the second of two rigidly joined masses) moves the states not held, with the smallest
+change, so that the consistent values at the start take it (:meth:`IndexReduction.impose`).
+Given values that contradict each other through the constraints are refused with the value the
+constraints force and the given values that fixed it.
 
 References
 ----------
@@ -683,7 +688,7 @@ class _Reducer:
                 name = derivative_name(base, order)
                 unit = _per_time(info.unit, order)
                 self.infos[name] = replace(
-                    info, name=name, unit=unit, start=0.0, start_priority=0, given=0,
+                    info, name=name, unit=unit, start=0.0, start_priority=0,
                     description=f"{_ordinal(order)} time derivative of {base}"
                                 + (" (dummy derivative)" if order >= d else ""))
                 if order <= d - 2:
@@ -902,17 +907,13 @@ def _consistent_values(system, t0=0.0, y=None, yp=None):
 
 
 def given_starts(leaves) -> dict[str, float]:
-    """Start values the user gave, by full name: every ``start=`` entry and the non-zero values
-    derived from parameters (``x0``, ``v0``, ``p0``, ...); zero ones count as defaults."""
-    given = {}
+    """Start values the user gave, by full name: every ``start=`` entry and the values derived
+    from parameters (``x0``, ``v0``, ``p0``, ...) that differ from what the parameters'
+    defaults give (the compiler's rule, see ``pvgraph.compiler._declare_variables``)."""
+    from .compiler import _declare_variables
+    given: dict[str, float] = {}
+    infos: dict = {}
+    registry: dict = {}
     for path, comp in leaves:
-        derived = dict(comp.starts(comp.params))
-        for key, var in type(comp).variables.items():
-            if callable(var.start):
-                derived[key] = var.start(comp.params)
-        for key, value in derived.items():
-            if value != 0.0:
-                given[f"{path}.{key}"] = float(value)
-        for key, value in comp._start.items():
-            given[f"{path}.{key}"] = float(value)
+        _declare_variables(path, comp, infos, registry, {}, given)
     return given
