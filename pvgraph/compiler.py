@@ -65,6 +65,9 @@ class VarInfo:
     description: str
     owner: str
     start_priority: int = 0  # 0 class default, 1 from parameters, 2 set by the user
+    # not a field (set on the few instances it applies to): 0 a default start value, 1 from a
+    # parameter given a non-default value, 2 set by ``start=``
+    given = 0
 
 
 @dataclass
@@ -142,12 +145,13 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     # their names exchanged (see _Provenance)
     prov = _Provenance()
     var_specs: dict = {}   # component class -> its variables (see _declare_variables)
+    given: dict = {}       # start values the user gave, by full name
     of_template: dict = {}   # template -> [(path, component) built from it]
     # the parameter trace is active over the whole loop (the start values read numbers only);
     # the math functions of the vocabulary stay symbolic throughout
     with trace:
         for path, comp in leaves:
-            _declare_variables(path, comp, infos, registry, var_specs)
+            _declare_variables(path, comp, infos, registry, var_specs, given)
             trace.where = f"{type(comp).__name__}.equations of {path!r}"
             residuals, v, leaves_read = templates.trace(comp, path, registry, trace)
             found.extend(leaves_read)
@@ -209,11 +213,11 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
                                        prov, why)
     del found
 
-    from .index_reduction import given_starts, reduce_index
+    from .index_reduction import reduce_index
     from .system import build_system
     try:
         equations, events, observed, reduction = reduce_index(equations, infos, subs, events,
-                                                              observed, given_starts(leaves),
+                                                              observed, given,
                                                               incidence)
         del incidence
         system = build_system(circuit.name, equations, infos, subs, observed, events,
@@ -264,34 +268,129 @@ def _rel_path(root: Circuit, owner) -> str:
 
 # 2. connection sets -------------------------------------------------------------------------
 
-def _declare_variables(path, comp, infos, registry, specs=None):
+def _declare_variables(path, comp, infos, registry, specs=None, given=None):
     """Enter the variables of ``comp`` (ports' across and through variables, then its own) in
     ``infos`` with their start values. ``specs``: a dict kept over one compilation, holding
     each class's list of variables (see :func:`_variable_specs`) and, for a class whose start
-    values read no parameters, those of the class."""
+    values read no parameters, those of the class. ``given``, a dict, receives the start values
+    the user gave (by full name): ``start=`` entries and parameter-derived ones that differ
+    from what the class's parameter defaults give.
+
+    Priorities: 2 set by ``start=``, 1 derived from a parameter given a non-default value (or
+    from a parameter without a default), 0 the class default. A given start thus wins over a
+    default one on the same node (see :func:`_set_start`)."""
     cls = type(comp)
     got = None if specs is None else specs.get(cls)
     if got is None:
-        got = (_variable_specs(cls), _class_starts(cls))
+        got = (_variable_specs(cls), _class_starts(cls), _start_defaults(cls))
         if specs is not None:
             specs[cls] = got
-    spec, fixed = got
+    spec, fixed, defaults = got
     explicit_user = comp._start
     if fixed is not None:   # as start_values_traced gives them, no parameter read
         starts = {**fixed, **explicit_user} if explicit_user else fixed
-        from_params = ()
     else:
         starts = comp.start_values_traced(path, registry)
-        # keys of the parameter-derived start values (none where the class keeps the default)
-        from_params = comp.starts(comp.params) if cls.starts is not Component.starts else ()
     for suffix, unit, key, nominal, desc, how in spec:
         name = path + suffix
         if how == 1:      # a through variable: starts at zero, never given
             infos[name] = VarInfo(name, unit, 0.0, nominal, desc, path, 0)
             continue
         start = float(starts.get(key, 0.0)) if how == 0 else float(starts[key])
-        prio = 2 if key in explicit_user else 1 if key in from_params else 0
-        infos[name] = VarInfo(name, unit, start, nominal, desc, path, prio)
+        # ``prio`` ranks the variables alias elimination keeps; ``told`` says whether the
+        # start value was given (it wins over a default one on the same node)
+        if key in explicit_user:
+            prio = told = 2
+        elif fixed is None and key in defaults:
+            default = defaults[key]
+            prio = 1 if key in defaults[_FROM_STARTS] else 0
+            if default is _NO_DEFAULT:   # reads a parameter without a default: given
+                told = 1 if prio or start != 0.0 else 0
+            else:
+                told = 1 if start != default else 0
+        else:
+            prio = told = 0
+        if told and given is not None and (told == 2 or start != 0.0 or
+                                           defaults.get(key) is not _NO_DEFAULT):
+            given[name] = start
+        info = infos[name] = VarInfo(name, unit, start, nominal, desc, path, prio)
+        if told:
+            info.given = told
+
+
+_NO_DEFAULT = object()
+_FROM_STARTS = object()     # key of the set of keys ``starts`` returns
+_START_DEFAULTS: dict = {}
+
+
+class _NoDefault(Exception):
+    pass
+
+
+class _DefaultView:
+    """A parameter model's fields at their declared defaults (raising for a required one)."""
+
+    __slots__ = ("_model",)
+
+    def __init__(self, model):
+        self._model = model
+
+    def __getattr__(self, name):
+        field = self._model.model_fields.get(name)
+        if field is None:
+            attr = getattr(self._model, name, None)
+            if isinstance(attr, property):
+                return attr.fget(self)
+            raise _NoDefault(name)
+        if field.is_required():
+            raise _NoDefault(name)
+        return field.get_default(call_default_factory=True)
+
+
+def _start_defaults(cls):
+    """``{key: start value with every parameter at its default}`` of the parameter-derived start
+    values of ``cls`` (``starts`` and callable variable starts), ``_NO_DEFAULT`` where that
+    value reads a parameter without a default; under ``_FROM_STARTS`` the keys ``starts``
+    returns. Computed once per class."""
+    got = _START_DEFAULTS.get(cls)
+    if got is not None:
+        return got
+    out: dict = {}
+    view = _DefaultView(cls.Params)
+    keys = ()
+    if cls.starts is not Component.starts:
+        try:
+            values = cls.starts(None, view)
+            keys = tuple(values)
+            for key, value in values.items():
+                out[key] = float(value)
+        except Exception:   # a parameter without a default, or a start not computable so
+            try:
+                keys = tuple(_keys_of_starts(cls))
+            except Exception:
+                keys = ()
+            for key in keys:
+                out[key] = _NO_DEFAULT
+    out[_FROM_STARTS] = frozenset(keys)
+    for name, var in cls.variables.items():
+        if callable(var.start) and name not in out:
+            try:
+                out[name] = float(var.start(view))
+            except Exception:
+                out[name] = _NO_DEFAULT
+    _START_DEFAULTS[cls] = out
+    return out
+
+
+def _keys_of_starts(cls):
+    """The keys ``cls.starts`` returns, read from a view giving every parameter as 0."""
+    class _Zeros:
+        def __getattr__(self, name):
+            attr = getattr(cls.Params, name, None)
+            if isinstance(attr, property):
+                return attr.fget(self)
+            return 0.0
+    return cls.starts(None, _Zeros())
 
 
 def _class_starts(cls):
@@ -1117,16 +1216,52 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
 
 
 def _set_start(infos, elim, keep, coef, off):
-    """Carry an eliminated variable's start value to the one it is expressed in."""
+    """Carry an eliminated variable's start value to the one it is expressed in.
+
+    The one of higher priority (see :func:`_declare_variables`) wins; two given ones that
+    disagree are reported with a :class:`~pvgraph.errors.PlausibilityWarning` (the kept
+    variable's value is used)."""
     ie = infos[elim]
     if keep is None:
         ie.start = off
         return
     ik = infos[keep]
-    if ie.start_priority > ik.start_priority and coef != 0.0:
+    if coef != 0.0 and (ie.given > ik.given or (
+            ie.given == ik.given and ie.start_priority > ik.start_priority)):
+        if ie.given and ik.given:
+            _start_conflict(ik, ie, coef, off, keep_elim=True)
         ik.start = (ie.start - off) / coef
-        ik.start_priority = ie.start_priority
+        ik.start_priority = max(ik.start_priority, ie.start_priority)
+        if ik.given != ie.given:
+            ik.given = ie.given
+    elif ie.given and ik.given:
+        _start_conflict(ik, ie, coef, off, keep_elim=False)
     ie.start = coef * ik.start + off
+
+
+START_CONFLICT_RTOL = 1e-9   # relative difference of two given start values reported
+
+
+def _start_conflict(ik, ie, coef, off, keep_elim):
+    """Warn if the given start values of ``ie`` and ``ik`` (``ie = coef * ik + off``)
+    disagree; ``keep_elim``: ``ie``'s value is the one used."""
+    carried = coef * ik.start + off
+    if abs(carried - ie.start) <= START_CONFLICT_RTOL * max(abs(carried), abs(ie.start),
+                                                             ie.nominal):
+        return
+    import warnings
+
+    from .errors import PlausibilityWarning
+    used = ie if keep_elim else ik
+    tied = "are one variable" if coef == 1.0 and off == 0.0 else \
+        f"are tied by the circuit ({ie.name} = {ik.name} * {coef:.6g} + {off:.6g})"
+
+    def show(info):
+        return f"{info.name} = {info.start:.6g}{' ' + info.unit if info.unit else ''}"
+    warnings.warn(PlausibilityWarning(
+        f"conflicting start values: {show(ie)} and {show(ik)} are both given, but they "
+        f"{tied}; {used.name} = {used.start:.6g} is used. Give the start value on one of them "
+        f"only."), stacklevel=3)
 
 
 def _unit(coef) -> bool:

@@ -42,9 +42,14 @@ watches its determinant: if it falls below ``PIVOT_RATIO`` of its start value th
 would have to change, and the run stops with a :class:`~pvgraph.errors.SolverError` naming the
 dummy derivatives, the states and the time (states are not switched during a run).
 
-The start values a user gives must satisfy the constraints that were hidden in the original
-equations; after reduction they are checked by solving for consistent values at ``t = 0`` with the
-chosen states held, and a conflict is reported with the values the constraints force.
+The start values a user gives (parameters such as ``x0``, ``v0``, ``w0`` that differ from their
+defaults, ``start=`` entries, ``simulate(start=...)``, runtime parameters) must satisfy the
+constraints that were hidden in the original equations. A given value on a chosen state holds
+it; a given value on a variable the constraints determine (a velocity whose derivative became a
+dummy, the second of two rigidly joined masses) moves the states not held, with the smallest
+change, so that the consistent values at the start take it (:meth:`IndexReduction.impose`).
+Given values that contradict each other through the constraints are refused with the value the
+constraints force and the given values that fixed it.
 
 References
 ----------
@@ -208,34 +213,140 @@ class IndexReduction:
             f"to remove the rigid constraint.", t=float(t), culprits=list(block.dummies))
 
     def _check_start(self, system):
-        """Raise if given start values contradict the constraints of the reduced system."""
-        checks = []
-        for name, value in self.given.items():
-            base = system.aliases[name][1] if name in system.aliases else name
-            if base in self.involved and base in system.index:
-                checks.append((name, value))
-        if not checks:
+        """Honour the given start values (see :meth:`impose`) in ``system.y0`` at ``t = 0``."""
+        self.impose(system, self.given, system.y0, system.yp0)
+
+    def restart(self, system, changed):
+        """After runtime parameters changed start values (``{full name: value}``): impose the
+        start values a fresh compilation would, on ``system.y0``."""
+        if not self.reduced:
             return
-        y, ok = _consistent_values(system)
-        if not ok:
-            return  # the solver's own initialisation will report what is wrong
+        given = dict(self.given)
+        given.update(changed)
+        self.impose(system, given, system.y0, system.yp0)
+
+    def impose(self, system, given, y, yp, t0=0.0):
+        """Make the start vector ``y`` take the start values ``given`` (``{name: value}``) of
+        the variables the constraints tie together, in place.
+
+        A given value on a state (or an alias of one) holds that state. A given value on a
+        variable the constraints determine (a mass's velocity whose derivative became a dummy,
+        the second of two rigidly joined masses) moves the states not held, with the smallest
+        change (Gauss-Newton on the consistent values at ``t0``). Given values the constraints
+        then contradict raise :class:`~pvgraph.errors.InitializationError`, naming each with
+        the value it is given and the value the constraints force.
+        """
+        if not self.reduced or not given:
+            return y
+        involved = self._involved_indices(system)
+        differential = ~np.asarray(system.algebraic)
+        held: dict[int, tuple] = {}
         bad = []
-        for name, value in checks:
-            coef, idx, off = system.resolve(name)
-            forced = off if idx is None else coef * y[idx] + off
-            nominal = system.nominal[idx] if idx is not None else 0.0
-            if abs(forced - value) > START_RTOL * max(abs(value), abs(forced), nominal) + 1e-300:
-                bad.append((name, value, forced))
+        loose = []      # (name, value, coef, idx, off) on variables the constraints determine
+        for name, value in given.items():
+            try:
+                coef, idx, off = system.resolve(name)
+            except KeyError:
+                continue
+            if idx is None or idx not in involved or coef == 0.0:
+                continue
+            value = float(value)
+            if differential[idx]:
+                target = (value - off) / coef
+                if idx in held:
+                    other, v_other, c_other, o_other = held[idx]
+                    forced = coef * y[idx] + off
+                    if abs(forced - value) > START_RTOL * max(abs(value), abs(forced),
+                                                              system.nominal[idx]):
+                        bad.append((name, value, forced, f"{other} = {v_other:.6g}"))
+                    continue
+                held[idx] = (name, value, coef, off)
+                y[idx] = target
+            else:
+                loose.append((name, value, coef, idx, off))
+        if loose:
+            free = np.array(sorted(j for j in involved if differential[j] and j not in held),
+                            dtype=int)
+            bad.extend(self._solve_loose(system, loose, free, y, yp, t0))
         if bad:
             listed = "; ".join(f"{n} = {v:.6g} given, the constraints force {f:.6g}"
-                               for n, v, f in bad[:NAMES_IN_MESSAGES])
-            states = ", ".join(f"{n} = {system.y0[system.index[n]]:.6g}"
+                               + (f" (with {why})" if why else "")
+                               for n, v, f, why in bad[:NAMES_IN_MESSAGES])
+            states = ", ".join(f"{n} = {y[system.index[n]]:.6g}"
                                for n, _ in self.states if n in system.index)
             raise InitializationError(
                 f"{system.name}: start values conflict with the constraints hidden in the circuit "
-                f"(rigid joints, position sources): {listed}. With the states {states} held, the "
+                f"(rigid joints, position sources): {listed}. With the states {states}, the "
                 f"differentiated equations ({'; '.join(d[0] for d in self.differentiated[:4])}) "
-                f"fix these values. Give start values only to the states, or consistent ones.")
+                f"fix these values. Give consistent start values, or give them on one of the "
+                f"joined variables only.")
+        return y
+
+    def _involved_indices(self, system):
+        names = set(self.involved)
+        for n, _ in self.states:
+            names.add(n)
+        for n, _ in self.dummies:
+            names.add(n)
+        return {system.index[n] for n in names if n in system.index}
+
+    def _solve_loose(self, system, loose, free, y, yp, t0):
+        """Move the free states so the variables of ``loose`` take their given values; return
+        the ones that cannot (name, given, forced, reason)."""
+        targets = np.array([v for _, v, _, _, _ in loose])
+        coefs = np.array([c for _, _, c, _, _ in loose])
+        idxs = np.array([j for _, _, _, j, _ in loose], dtype=int)
+        offs = np.array([o for _, _, _, _, o in loose])
+        scale = np.maximum(np.abs(targets), system.nominal[idxs])
+        rows = None
+        for _ in range(IC_MAX_ITERS):
+            yc, ypc, ok = _consistent_values(system, t0, y, yp)
+            if not ok:
+                return []   # the solver's own initialisation will report what is wrong
+            r = (coefs * yc[idxs] + offs - targets) / scale
+            if free.size == 0:
+                rows = []
+                break
+            G = self._sensitivity(system, t0, yc, ypc, free, idxs) * (coefs / scale)[:, None]
+            Gs = G * system.nominal[free][None, :]
+            if rows is None:   # the given values that fix independent directions, in order
+                rows = []
+                for k in range(len(loose)):
+                    trial = rows + [k]
+                    if np.linalg.matrix_rank(Gs[trial], tol=PIVOT_RANK_TOL * max(
+                            1.0, np.max(np.abs(Gs)))) == len(trial):
+                        rows = trial
+            if not rows or np.all(np.abs(r[rows]) <= START_RTOL * 1e-3):
+                break
+            step = np.linalg.lstsq(Gs[rows], -r[rows], rcond=None)[0]
+            y[free] += step * system.nominal[free]
+        rows = rows or []
+        bad = []
+        fixing = ", ".join(f"{loose[k][0]} = {loose[k][1]:.6g}" for k in rows)
+        for k, (name, value, coef, idx, off) in enumerate(loose):
+            forced = coef * yc[idx] + off
+            if abs(forced - value) > START_RTOL * max(abs(value), abs(forced),
+                                                      system.nominal[idx]):
+                bad.append((name, value, forced, fixing if k not in rows else ""))
+        return bad
+
+    @staticmethod
+    def _sensitivity(system, t0, y, yp, free, idxs):
+        """d y[idxs] / d y[free] of the consistent values (states ``free`` moved, the others
+        held): the implicit function theorem on the residual."""
+        alg = np.asarray(system.algebraic)
+        J0 = system.jacobian_dense(t0, y, yp, 0.0)
+        J1 = system.jacobian_dense(t0, y, yp, 1.0)
+        M = np.where(alg[None, :], J0, J1 - J0)
+        du = -np.linalg.solve(M, J0[:, free])       # d(y_alg, yp_diff) / d y_free
+        out = np.zeros((len(idxs), len(free)))
+        pos = {int(j): k for k, j in enumerate(free)}
+        for r, j in enumerate(idxs):
+            if alg[j]:
+                out[r] = du[j]
+            elif int(j) in pos:
+                out[r, pos[int(j)]] = 1.0
+        return out
 
 
 class _PivotLost:
@@ -766,46 +877,43 @@ def _evaluate(e: E.Expr, values: dict) -> float:
     return val[id(e)]
 
 
-def _consistent_values(system, t0=0.0):
-    """Consistent y at ``t0`` with the differential states held at their start values.
+def _consistent_values(system, t0=0.0, y=None, yp=None):
+    """Consistent y at ``t0`` with the differential states held at their start values (those
+    of ``y``, ``yp`` if given, else the system's).
 
     Newton on the algebraic y and the derivatives of the states (the unknowns of IDA's
-    ``calc_initial="algebraic"``); returns ``(y, converged)``.
+    ``calc_initial="algebraic"``); returns ``(y, yp, converged)``.
     """
-    y = system.y0.copy()
-    yp = system.yp0.copy()
+    y = (system.y0 if y is None else y).copy()
+    yp = (system.yp0 if yp is None else yp).copy()
     alg = system.algebraic
     for _ in range(IC_MAX_ITERS):
         r = system.residual(t0, y, yp)
         if not np.all(np.isfinite(r)):
-            return y, False
+            return y, yp, False
         J0 = system.jacobian_dense(t0, y, yp, 0.0)
         J1 = system.jacobian_dense(t0, y, yp, 1.0)
         M = np.where(alg[None, :], J0, J1 - J0)   # column j: dF/dy_j or dF/dy'_j
         try:
             dz = np.linalg.solve(M, r)
         except np.linalg.LinAlgError:
-            return y, False
+            return y, yp, False
         z = np.where(alg, y, yp)
         y[alg] -= dz[alg]
         yp[~alg] -= dz[~alg]
         if np.all(np.abs(dz) <= IC_TOL * np.maximum(np.abs(z), system.nominal)):
-            return y, True
-    return y, False
+            return y, yp, True
+    return y, yp, False
 
 
 def given_starts(leaves) -> dict[str, float]:
-    """Start values the user gave, by full name: every ``start=`` entry and the non-zero values
-    derived from parameters (``x0``, ``v0``, ``p0``, ...); zero ones count as defaults."""
-    given = {}
+    """Start values the user gave, by full name: every ``start=`` entry and the values derived
+    from parameters (``x0``, ``v0``, ``p0``, ...) that differ from what the parameters'
+    defaults give (the compiler's rule, see ``pvgraph.compiler._declare_variables``)."""
+    from .compiler import _declare_variables
+    given: dict[str, float] = {}
+    infos: dict = {}
+    registry: dict = {}
     for path, comp in leaves:
-        derived = dict(comp.starts(comp.params))
-        for key, var in type(comp).variables.items():
-            if callable(var.start):
-                derived[key] = var.start(comp.params)
-        for key, value in derived.items():
-            if value != 0.0:
-                given[f"{path}.{key}"] = float(value)
-        for key, value in comp._start.items():
-            given[f"{path}.{key}"] = float(value)
+        _declare_variables(path, comp, infos, registry, {}, given)
     return given

@@ -238,12 +238,19 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         system = system.with_params(params)
     y_init = _full_vector(system, system.y0 if y0 is None else y0, "y0")
     yp_init = _full_vector(system, system.yp0 if yp0 is None else yp0, "yp0")
+    given = {}
     for name, value in (start or {}).items():
         coef, idx, off = system.resolve(name)
         if idx is None or coef == 0.0:
             raise PvgraphError(f"start value for {name!r}: it is fixed to {off!r} by the circuit")
         value = _start_value(system, name, value)
         y_init[idx] = (value - off) / coef
+        given[name] = value
+    reduction = getattr(system, "index_reduction", None)
+    if given and reduction is not None and reduction.reduced:
+        # a start on a variable the constraints determine moves the state it is tied to;
+        # contradicting ones are refused with the values the constraints force
+        reduction.impose(system, given, y_init, yp_init, t_start)
     atol_vec = (rtol if atol is None else atol) * system.nominal
     system.reset_modes()
     system.apply_start_events(t_start, y_init, yp_init)

@@ -623,6 +623,7 @@ class System:
                 f"{self.name}: compiling again, structural parameter(s) changed: "
                 + "; ".join(structural)), stacklevel=2)
             return self._recompiled(models).use_backend(self.backend)
+        started = {}
         for path, model in models.items():
             comp = self._components[path]
             old_starts = _starts_of(comp, self._models[path]) if any(
@@ -634,7 +635,7 @@ class System:
                 new._P[k] = value
                 new.parameters[full] = dataclasses.replace(self.parameters[full], value=value)
             if old_starts is not None:
-                new._apply_starts(path, old_starts, _starts_of(comp, model))
+                started.update(new._apply_starts(path, old_starts, _starts_of(comp, model)))
             new._models[path] = model
         changed = {f"{path}.{f}" for path, fields in updates.items() for f in fields}
         for tab in self._tables:
@@ -648,6 +649,8 @@ class System:
                     raise ParameterError(f"{self.name}: {exc}") from None
         new._alias_values = None
         new._update_derived()
+        if started and getattr(new, "index_reduction", None) is not None:
+            new.index_reduction.restart(new, started)   # as a fresh compilation would
         return new
 
     def _update_derived(self):
@@ -847,15 +850,18 @@ class System:
                              f"the runtime ones.")
 
     def _apply_starts(self, path, old, new):
+        changed = {}
         for key, value in new.items():
             if old.get(key) == value:
                 continue
+            changed[f"{path}.{key}"] = float(value)
             try:
                 coef, idx, off = self.resolve(f"{path}.{key}")
             except KeyError:
                 continue
             if idx is not None and coef != 0.0:
                 self.y0[idx] = (value - off) / coef
+        return changed
 
     def _copy(self) -> "System":
         new = copy.copy(self)
