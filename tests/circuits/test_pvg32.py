@@ -4,7 +4,7 @@ rig reproduces the lab measurements (report sections 4.2-4.7, appendix B.7)."""
 import numpy as np
 import pytest
 
-from pvgraph.circuits.pvg32.modules import build_pvb, build_pvg32, build_pvp
+from pvgraph.circuits.pvg32.modules import build_pvb, build_pvp
 from pvgraph.circuits.pvg32.parameters import report_tuned
 from pvgraph.circuits.rig import build_rig, laminar_load, turbulent_load
 from pvgraph.circuits.validation import run_scenario, targets, validate

@@ -12,7 +12,7 @@ from pvgraph import Circuit
 from pvgraph.analysis import FitParameter, calibrate, steady_state
 from pvgraph.analysis.calibrate import CalibrationError
 from pvgraph.errors import ParameterError
-from pvgraph.units import bar, lpm, lpm_per_bar, mm2, to_bar, to_lpm
+from pvgraph.units import bar, lpm_per_bar, mm2, to_bar, to_lpm
 
 T = np.linspace(0.0, 2.0, 25)
 
