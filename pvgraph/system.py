@@ -788,6 +788,13 @@ class System:
         for nm in names:
             if nm not in self._pindex:
                 raise ParameterError(self._unknown_parameter(nm))
+            why = getattr(self.parameters.get(nm), "structural", "")
+            if why:
+                raise ParameterError(
+                    f"{self.name}: parameter {nm!r} is structural ({why}): the compiled "
+                    f"equations hold it as a number, so their derivative with respect to it "
+                    f"is not known; differentiate rebuilt circuits instead (linearize_circuit, "
+                    f"finite differences)")
             cols.append(self._pindex[nm])
         return cols
 

@@ -326,7 +326,18 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
     bad = [labels[i] for i in np.flatnonzero(~np.isfinite(y))]
     if bad:
         raise CalibrationError(f"measurements are not finite: {bad[:5]}")
-    s = np.broadcast_to(np.asarray(1.0 if sigma is None else sigma, dtype=float), (m,)).copy()
+    s = np.asarray(1.0 if sigma is None else sigma, dtype=float)
+    if s.ndim > 1 or (s.ndim == 1 and s.size != m):
+        raise CalibrationError(f"sigma has {s.size} values for {m} measurements (give one "
+                               f"value, or one per measurement)")
+    s = np.broadcast_to(s, (m,)).copy()
+    for what, value in (("diff_step", diff_step), ("cov_step", cov_step)):
+        if not (isinstance(value, (int, float)) and 0.0 < value < 1.0):
+            raise CalibrationError(f"{what} must lie in (0, 1), got {value!r}")
+    if not (isinstance(rcond, (int, float)) and 0.0 <= rcond < 1.0):
+        raise CalibrationError(f"rcond must lie in [0, 1), got {rcond!r}")
+    if max_nfev is not None and not (isinstance(max_nfev, int) and max_nfev >= 1):
+        raise CalibrationError(f"max_nfev must be a positive integer, got {max_nfev!r}")
     bad = [labels[i] for i in np.flatnonzero(~(s > 0) | ~np.isfinite(s))]
     if bad:
         raise CalibrationError(f"sigma must be positive and finite; not so for {bad[:5]}")

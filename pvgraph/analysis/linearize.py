@@ -34,6 +34,7 @@ perturbed inside it. Inputs are therefore given either
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Callable, Mapping, NamedTuple, Sequence
 
@@ -76,8 +77,13 @@ class LinearModel:
     op: OperatingPoint | None = None
 
     def _idx(self, key, names, what):
+        if isinstance(key, (bool, np.bool_)):
+            raise TypeError(f"{what} {key!r}: give a name or an index, not a bool")
         if isinstance(key, (int, np.integer)):
-            return int(key)
+            if not -len(names) <= int(key) < len(names):
+                raise IndexError(f"{what} index {int(key)} is out of range: the model has "
+                                 f"{len(names)} {what}s {names}")
+            return int(key) % len(names)
         if key in names:
             return names.index(key)
         system = self.op.system if self.op is not None else None
@@ -96,14 +102,25 @@ class LinearModel:
 
     def dc_gain(self) -> np.ndarray:
         """Steady-state gain ``D - C A^-1 B`` (outputs x inputs)."""
-        return self.D - self.C @ np.linalg.solve(self.A, self.B)
+        try:
+            return self.D - self.C @ np.linalg.solve(self.A, self.B)
+        except np.linalg.LinAlgError:
+            raise PvgraphError(f"the model has a pole at s = 0 (an integrator: "
+                               f"{self.state_names[:4]} ...): its DC gain is infinite") from None
 
     def frequency_response(self, w, output=0, input=0) -> np.ndarray:
         """``G(j w) = C (j w I - A)^-1 B + D`` of the path ``input -> output`` at the angular
         frequencies ``w`` [rad/s] (complex, one per frequency)."""
         i = self._idx(output, self.output_names, "output")
         j = self._idx(input, self.input_names, "input")
-        w = np.atleast_1d(np.asarray(w, dtype=float))
+        try:
+            w = np.atleast_1d(np.asarray(w, dtype=float))
+        except (TypeError, ValueError):
+            raise ValueError(f"w: frequencies [rad/s] as numbers, got {w!r}") from None
+        if w.ndim != 1 or w.size == 0 or not np.all(np.isfinite(w)) or np.any(w < 0.0):
+            raise ValueError(f"w: a non-empty 1-D array of finite frequencies >= 0 [rad/s], got "
+                             f"shape {w.shape}" + ("" if w.size == 0 else
+                                                   f", from {w.min()!r} to {w.max()!r}"))
         A, b, c, d = self.A, self.B[:, j], self.C[i], self.D[i, j]
         eye = np.eye(A.shape[0])
         return np.array([c @ np.linalg.solve(1j * wk * eye - A, b) + d for wk in w])
@@ -151,6 +168,9 @@ class LinearModel:
         default polynomial method.
         """
         import control
+        if not (isinstance(points_per_decade, (int, np.integer)) and points_per_decade >= 1):
+            raise ValueError(f"points_per_decade must be a positive integer, got "
+                             f"{points_per_decade!r}")
         sys = self.siso(output, input)
         w = _frequency_grid(np.concatenate([self.poles(), control.zeros(sys)]),
                             points_per_decade)
@@ -206,6 +226,12 @@ class LinearModel:
         controller in series with the loop.
         """
         j, i = self._loop_indices(input, output)
+        try:
+            gain = float(gain)
+        except (TypeError, ValueError):
+            raise TypeError(f"feedback gain must be a number, got {gain!r}") from None
+        if not np.isfinite(gain):
+            raise ValueError(f"feedback gain must be finite, got {gain!r}")
         cb, bj, dj = self.C[i:i + 1], self.B[:, j:j + 1], self.D[:, j:j + 1]
         B, D = self.B.copy(), self.D.copy()
         B[:, j:j + 1] *= gain
@@ -305,8 +331,20 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
         in an input (a source's own flow ``pump.port.q = -Q``, a drive force holding ``k u``)
         moves with it directly; added to ``D``.
     """
+    if not isinstance(op, OperatingPoint):
+        raise PvgraphError(f"linearize: op must be an OperatingPoint (steady_state's result), "
+                           f"got {type(op).__name__}")
+    if op.system is not system and list(op.system.names) != list(system.names):
+        raise PvgraphError(f"linearize: the operating point is one of {op.system.name!r}, "
+                           f"whose unknowns differ from those of {system.name!r}")
+    outputs = [outputs] if isinstance(outputs, str) else list(outputs)
     inputs = dict(inputs or {})
     direct = dict(direct or {})
+    for name, col in inputs.items():
+        col = np.asarray(col, dtype=float)
+        if col.size != system.n or not np.all(np.isfinite(col)):
+            raise PvgraphError(f"linearize: input {name!r}: dF/du must be {system.n} finite "
+                               f"numbers, got shape {col.shape}")
     n = system.n
     x = np.flatnonzero(system.differential)
     z = np.flatnonzero(system.algebraic)
@@ -390,7 +428,23 @@ def linearize_circuit(build: Callable[[dict], object], u0: Mapping[str, float],
     ``build`` maps a dict of input values to a Circuit (or System); the inputs of the model are
     the keys of ``u0``, in order.
     """
-    system = _as_system(build(dict(u0)))
+    if not isinstance(u0, Mapping) or not u0:
+        raise PvgraphError(f"u0: a non-empty mapping {{input name: value}}, got {u0!r}")
+    outputs = [outputs] if isinstance(outputs, str) else list(outputs)
+    if not outputs:
+        raise PvgraphError("outputs: name at least one variable")
+    if not (isinstance(eps_rel, (int, float)) and eps_rel > 0.0 and math.isfinite(eps_rel)):
+        raise PvgraphError(f"eps_rel must be a positive number, got {eps_rel!r}")
+    for name, step in dict(du or {}).items():
+        if name not in u0:
+            raise PvgraphError(f"du names {name!r}, which is not an input; the inputs are "
+                               f"{list(u0)}")
+        if not (isinstance(step, (int, float)) and step > 0.0 and math.isfinite(step)):
+            raise PvgraphError(f"du[{name!r}] must be a positive number, got {step!r}")
+    built = build(dict(u0))
+    if built is None:
+        raise PvgraphError("build(u0) returned None; it must return a Circuit or a System")
+    system = _as_system(built)
     if op is None:
         op = steady_state(system, y0=y0, tol=tol)
     du = dict(du or {})

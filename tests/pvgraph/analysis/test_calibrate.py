@@ -195,3 +195,15 @@ def test_quantities_in_a_parameter_mapping_are_si_inside_and_shown_in_their_unit
         calibrate(predict, x, {"A": ("2 mm^2", "1 bar", 8e-6)})
     with pytest.raises(CalibrationError, match=r"initial value or \(initial, lower, upper\)"):
         calibrate(predict, x, {"A": (1.0, 2.0)})
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"sigma": [1.0, 2.0]}, "sigma has 2 values for 8 measurements"),
+    ({"cov_step": 0.0}, r"cov_step must lie in \(0, 1\)"),
+    ({"diff_step": -1e-3}, r"diff_step must lie in \(0, 1\)"),
+    ({"max_nfev": 0}, "max_nfev must be a positive integer"),
+])
+def test_bad_numerical_options_are_named_before_the_fit(kwargs, match):
+    x = np.linspace(0.0, 1.0, 8)
+    with pytest.raises(CalibrationError, match=match):
+        calibrate(lambda t: t["a"] * x, 2.0 * x, {"a": 1.0}, **kwargs)

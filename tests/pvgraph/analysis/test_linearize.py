@@ -299,3 +299,66 @@ def test_an_output_the_compiler_expressed_in_the_input_keeps_its_feedthrough():
     lm = linearize_circuit(drive, {"k.k": 0.01}, ["ps.flange.f"])
     assert lm.D.ravel()[0] == pytest.approx(-600.0, rel=1e-7)
     assert lm.dc_gain().ravel()[0] == pytest.approx(-500.0, rel=1e-7)
+
+
+def test_bad_arguments_to_the_linear_model_are_named():
+    """Out-of-range indexes, bad frequencies, a non-finite gain and a zero difference step are
+    refused by name (they gave empty models, NaN models or numpy tracebacks)."""
+    lm = _model(__import__("control").tf([1.0], [1.0, 3.0, 2.0]))
+    with pytest.raises(IndexError, match="output index 9 is out of range"):
+        lm.siso(9)
+    with pytest.raises(ValueError, match="finite frequencies"):
+        lm.frequency_response([1.0, float("nan")])
+    with pytest.raises(ValueError, match="points_per_decade must be a positive integer"):
+        lm.margins(points_per_decade=0)
+    with pytest.raises(ValueError, match="feedback gain must be finite"):
+        lm.feedback("u", "y", gain=float("nan"))
+
+    def bench(u):
+        return _demo_circuit(u["pump.Q"])
+    with pytest.raises(PvgraphError, match="eps_rel must be a positive number"):
+        linearize_circuit(bench, {"pump.Q": 1e-4}, ["node.port.p"], eps_rel=0.0)
+    with pytest.raises(PvgraphError, match=r"du\['pump.Q'\] must be a positive number"):
+        linearize_circuit(bench, {"pump.Q": 1e-4}, ["node.port.p"], du={"pump.Q": 0.0})
+
+
+def _demo_circuit(q):
+    from pvgraph.components import Orifice
+    c = Circuit("demo")
+    pump, node = c.add("pump", FlowSource(Q=q)), c.add("node", VolumeNode(V=5e-4))
+    orifice, tank = c.add("orifice", Orifice(A=2e-6)), c.add("tank", Tank())
+    c.connect(pump.port, node.port, orifice.a)
+    c.connect(orifice.b, tank.port)
+    return c
+
+
+def test_the_sensitivity_to_a_structural_parameter_is_refused():
+    """A leak written with float(p.K) holds K as a number in the compiled equations: dF/dK is
+    not known, so its steady-state sensitivity is refused by name (it was silently 0, where
+    dp/dK = -Q/K^2)."""
+    from pydantic import Field
+
+    from pvgraph import Component, Hydraulic, Params
+    from pvgraph.analysis import steady_state
+    from pvgraph.errors import ParameterError
+
+    class LeakParams(Params):
+        K: float = Field(1e-11, gt=0)
+
+    class Leak(Component):
+        Params = LeakParams
+        ports = {"a": Hydraulic("a"), "b": Hydraulic("b")}
+
+        def equations(self, v, p):
+            k = float(p.K)
+            return [v.a.q - k * (v.a.p - v.b.p), v.a.q + v.b.q]
+
+    c = Circuit("leak")
+    pump, node = c.add("pump", FlowSource(Q=1e-4)), c.add("node", VolumeNode(V=5e-4))
+    leak, tank = c.add("lk", Leak()), c.add("tank", Tank())
+    c.connect(pump.port, node.port, leak.a)
+    c.connect(leak.b, tank.port)
+    op = steady_state(c.compile())
+    assert op["node.port.p"] == pytest.approx(1e-4 / 1e-11, rel=1e-9)
+    with pytest.raises(ParameterError, match="'lk.K' is structural"):
+        op.sensitivity(["node.port.p"], ["lk.K"])
