@@ -114,7 +114,10 @@ class Solution:
 
     def to_csv(self, path, names: Iterable[str] | None = None) -> None:
         """Write time and the named variables (default: all unknowns) to ``path`` atomically."""
-        names = list(names) if names is not None else list(self.system.names)
+        names = [names] if isinstance(names, str) else (
+            list(names) if names is not None else list(self.system.names))
+        if not names:
+            raise PvgraphError("to_csv: name at least one variable (or none for all unknowns)")
         cols = [self[n] for n in names]
         header = ["t [s]"] + [f"{n} [{self.unit(n)}]" for n in names]
         _atomic_write(path, lambda f: _write_csv(f, header, self.t, cols))

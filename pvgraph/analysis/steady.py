@@ -22,6 +22,8 @@ the start point (the size of the row's terms), so the tolerance is relative.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -434,6 +436,16 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
     """
     from ..circuit import Circuit
     from ..simulate import _full_vector
+    if not (isinstance(tol, (int, float)) and 0.0 < tol < 1.0):
+        raise PvgraphError(f"steady_state: tol must lie in (0, 1), got {tol!r}")
+    if not (isinstance(max_iter, int) and max_iter >= 1):
+        raise PvgraphError(f"steady_state: max_iter must be a positive integer, got "
+                           f"{max_iter!r}")
+    if not (isinstance(t, (int, float)) and math.isfinite(t)):
+        raise PvgraphError(f"steady_state: t must be a finite time [s], got {t!r}")
+    if params is not None and not isinstance(params, Mapping):
+        raise PvgraphError(f"steady_state: params must be a mapping {{name: value}}, got "
+                           f"{type(params).__name__}")
     if isinstance(system, Circuit):
         system = system.compile()
     if not isinstance(system, System):

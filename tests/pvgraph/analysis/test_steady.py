@@ -112,3 +112,21 @@ def test_a_long_chain_solves_sparse_to_the_orifice_law():
     # the law's smooth laminar-turbulent transition (dp_t = 100 Pa) shifts it by 5.5e-6
     assert np.allclose(p, (N - np.arange(N)) * dp, rtol=2e-5, atol=0)
     assert np.allclose(np.diff(p), np.diff(p).mean(), rtol=1e-9)     # every drop the same
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"tol": -1.0}, r"tol must lie in \(0, 1\)"), ({"tol": float("nan")}, "tol must lie"),
+    ({"max_iter": 0}, "max_iter must be a positive integer"),
+    ({"t": float("nan")}, "t must be a finite time"),
+    ({"params": ["orifice.A"]}, "params must be a mapping"),
+])
+def test_bad_options_of_steady_state_are_named(kwargs, match):
+    from pvgraph.errors import PvgraphError
+    from pvgraph.analysis import steady_state
+    c = Circuit("demo")
+    pump, node = c.add("pump", FlowSource(Q=1e-4)), c.add("node", VolumeNode(V=5e-4))
+    orifice, tank = c.add("orifice", Orifice(A=2e-6)), c.add("tank", Tank())
+    c.connect(pump.port, node.port, orifice.a)
+    c.connect(orifice.b, tank.port)
+    with pytest.raises(PvgraphError, match=match):
+        steady_state(c.compile(), **kwargs)
