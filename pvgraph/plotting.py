@@ -32,6 +32,9 @@ def _save(fig, path):
 
 def plot_solution(sol, names, path, *, title=None, si=False):
     """One panel per unit: the named variables over time, in bar, L/min, mm (SI if ``si``)."""
+    names = [names] if isinstance(names, str) else list(names)
+    if not names:
+        raise ValueError("plot_solution: name at least one variable")
     groups: dict[str, list[str]] = {}
     for n in names:
         groups.setdefault(sol.unit(n), []).append(n)

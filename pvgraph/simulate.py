@@ -61,6 +61,9 @@ class Solution:
         return self._observed
 
     def __getitem__(self, name: str) -> np.ndarray:
+        if not isinstance(name, str):
+            raise TypeError(f"a solution is read by variable name (sol['node.port.p']), got "
+                            f"{name!r}")
         if name in self.system.observed:
             return self._observed_values()[name]
         coef, idx, off = self.system.resolve(name)
@@ -88,6 +91,8 @@ class Solution:
         return coef * self.yp[:, idx]
 
     def __contains__(self, name: str) -> bool:
+        if not isinstance(name, str):
+            return False
         try:
             self.unit(name)
         except KeyError:
@@ -103,8 +108,8 @@ class Solution:
 
     def at(self, name: str, t: float) -> float:
         """Value at time ``t`` (linear interpolation between output points); ``t`` outside
-        the run raises."""
-        t = float(t)
+        the run raises; ``t`` may carry a unit (``"0.1 s"``)."""
+        t = _seconds(t, "t")
         lo, hi = float(self.t[0]), float(self.t[-1])
         slack = 1e-12 * max(1.0, abs(lo), abs(hi))
         if not (lo - slack <= t <= hi + slack):

@@ -153,6 +153,8 @@ class CalibrationResult:
             raise KeyError(f"no fitted parameter {name!r}; fitted: {self.names}") from None
 
     def interval(self, name: str) -> tuple[float, float]:
+        if name not in self.names:
+            raise KeyError(f"no fitted parameter {name!r}; fitted: {self.names}")
         k = self.names.index(name)
         return float(self.ci_low[k]), float(self.ci_high[k])
 

@@ -195,6 +195,8 @@ class LinearModel:
         sys = self.siso(output, input)
         if "timepts" not in options:
             options["timepts"] = _step_grid(sys.A, sys.B, sys.C)
+        else:
+            options["timepts"] = _times(options["timepts"], "timepts")
         return control.step_info(sys, **options)
 
     def damping(self):
@@ -263,9 +265,22 @@ class LinearModel:
         from scipy import signal
         i = self._idx(output, self.output_names, "output")
         j = self._idx(input, self.input_names, "input")
+        t = _times(t, "t")
         sys = signal.StateSpace(self.A, self.B[:, j:j + 1], self.C[i:i + 1], self.D[i:i + 1, j:j + 1])
         _, yout, _ = signal.lsim(sys, np.full(len(t), amplitude), t)
         return np.asarray(yout).reshape(-1)
+
+
+def _times(t, what) -> np.ndarray:
+    """``t`` as an increasing 1-D array of at least two finite times, or a ValueError."""
+    try:
+        t = np.asarray(t, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what}: times [s] as numbers, got {t!r}") from None
+    if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        raise ValueError(f"{what}: at least two finite, increasing times [s], got shape "
+                         f"{t.shape}")
+    return t
 
 
 def _step_grid(A, b, c) -> np.ndarray:
@@ -331,6 +346,9 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
         in an input (a source's own flow ``pump.port.q = -Q``, a drive force holding ``k u``)
         moves with it directly; added to ``D``.
     """
+    if states != "differential":
+        raise PvgraphError(f"linearize: states={states!r}; the states are the differential "
+                           f"variables ('differential')")
     if not isinstance(op, OperatingPoint):
         raise PvgraphError(f"linearize: op must be an OperatingPoint (steady_state's result), "
                            f"got {type(op).__name__}")

@@ -72,6 +72,7 @@ class OperatingPoint:
         every parameter. ``params`` defaults to every runtime parameter of the system.
         """
         s = self.system
+        params = [params] if isinstance(params, str) else params
         Fp = s.parameter_jacobian(self.t, self.y, self.yp, params)
         return self.solve_linear(-Fp)
 
@@ -115,6 +116,8 @@ class OperatingPoint:
         d out/dy dy/dp + d out/dp`` with ``dy/dp = -F_y^-1 F_p`` (:meth:`state_sensitivity`).
         """
         s = self.system
+        outputs = [outputs] if isinstance(outputs, str) else list(outputs)
+        params = [params] if isinstance(params, str) else params
         S = self.state_sensitivity(params) if dy_dp is None else dy_dp
         rows = []
         for name in outputs:

@@ -330,3 +330,21 @@ def test_the_derivative_of_a_derived_output_is_one_sided_at_an_event():
     at = np.flatnonzero(sol.t == 0.1)
     assert len(at) == 2
     assert abs(d[at[0]]) < 1e-12 and d[at[1]] > 0.0
+
+
+def test_a_solution_read_with_the_wrong_key_types():
+    """sol[0] names the mistake, ``0 in sol`` is False, ``sol.at`` takes "0.1 s", one name as
+    a string is one name, and an empty list of names writes nothing."""
+    c = Circuit("demo")
+    pump, node = c.add("pump", FlowSource(Q=1e-4)), c.add("node", VolumeNode(V=5e-4))
+    orifice, tank = c.add("orifice", Orifice(A=2e-6)), c.add("tank", Tank())
+    c.connect(pump.port, node.port, orifice.a)
+    c.connect(orifice.b, tank.port)
+    sol = simulate(c, 0.2)
+    with pytest.raises(TypeError, match="read by variable name"):
+        sol[0]
+    assert (0 in sol) is False and ("node.port.p" in sol) is True
+    assert sol.at("node.port.p", "0.1 s") == sol.at("node.port.p", 0.1)
+    from pvgraph.errors import PvgraphError
+    with pytest.raises(PvgraphError, match="name at least one variable"):
+        sol.to_csv("never.csv", [])
