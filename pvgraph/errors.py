@@ -15,6 +15,7 @@ __all__ = [
     "InitializationError",
     "SolverError",
     "PlausibilityWarning",
+    "StartValueWarning",
 ]
 
 
@@ -59,3 +60,7 @@ class SolverError(PvgraphError):
 
 class PlausibilityWarning(UserWarning):
     """A result is numerically fine but physically implausible (e.g. a pressure of 1e6 bar)."""
+
+
+class StartValueWarning(UserWarning):
+    """A start value given to a run was not kept: the consistent start computed another one."""

@@ -12,7 +12,7 @@ from typing import Iterable
 import numpy as np
 
 from .circuit import Circuit
-from .errors import PlausibilityWarning, PvgraphError
+from .errors import PlausibilityWarning, PvgraphError, StartValueWarning
 from .system import System
 
 __all__ = ["simulate", "Solution"]
@@ -210,6 +210,8 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         Output times; default every internal step.
     start : dict, optional
         Start values by variable name, overriding the components' (``{"node.port.p": 1e6}``).
+        A state keeps its start value; an algebraic variable's is a first guess that the
+        consistent start may change (a :class:`~pvgraph.errors.StartValueWarning` says so).
     y0, yp0 : array, optional
         Full initial vectors (e.g. a previous operating point); ``start`` is applied on top.
     calc_initial : {"algebraic", "all", None}
@@ -289,8 +291,32 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         raise PvgraphError(f"{system.name}: simulation stopped early: {res.message}")
     sol = Solution(system, res.t, res.y, res.yp, events=res.events, stats=res.stats,
                    mode_log=system.mode_log, solver=solver)
+    _check_starts_kept(sol, given)
     _check_pressures(sol)
     return sol
+
+
+def _check_starts_kept(sol, given) -> None:
+    """Warn of each ``start=`` value the consistent start did not keep.
+
+    A start value of an algebraic variable (the pressure of a node without volume, a flow)
+    is a first guess only, as in Modelica: the consistent start computes it from the states.
+    Where it then differs from the value given, the user learns so and which variables do
+    hold a start value (a Simscape "target not satisfied" warning)."""
+    system = sol.system
+    for name, value in given.items():
+        got = float(sol[name][0])
+        _, idx, _ = system.resolve(name)
+        scale = max(abs(value), abs(got), float(system.nominal[idx]))
+        if abs(got - value) <= 1e-4 * scale:
+            continue
+        states = [nm for nm, alg in zip(system.names, system.algebraic) if not alg]
+        shown = ", ".join(states[:6]) + (", ..." if len(states) > 6 else "")
+        warnings.warn(StartValueWarning(
+            f"{system.name}: start value for {name!r} ({value:.6g}) was not kept; the run "
+            f"starts at {got:.6g}. {name!r} is an algebraic variable: the consistent start "
+            f"computes it from the states, so its start value is a first guess only. Give "
+            f"start values of states instead ({shown})."), stacklevel=3)
 
 
 def _start_value(system, name, value) -> float:
