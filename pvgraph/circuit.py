@@ -29,7 +29,7 @@ from pydantic import BaseModel
 
 from .component import Component, Port, PortRef
 from .errors import (CircuitError, ConnectionError_, ParameterError, PlausibilityWarning,
-                     StructureError)
+                     StructureError, outside_stacklevel)
 
 __all__ = ["Circuit", "reuse_compiled"]
 
@@ -349,7 +349,7 @@ class Circuit:
                 f"circuit {self.name!r}: the hydraulic network of {names} has no pressure "
                 f"reference (no Tank or pressure source): its pressures float on the start "
                 f"values of its volumes. Connect a Tank (or a PressureSource) to it."),
-                stacklevel=2)
+                stacklevel=outside_stacklevel())
         if key is not None:
             _keep(key, system)
         return system

@@ -1251,7 +1251,7 @@ def _start_conflict(ik, ie, coef, off, keep_elim):
         return
     import warnings
 
-    from .errors import PlausibilityWarning
+    from .errors import PlausibilityWarning, outside_stacklevel
     used = ie if keep_elim else ik
     tied = "are one variable" if coef == 1.0 and off == 0.0 else \
         f"are tied by the circuit ({ie.name} = {ik.name} * {coef:.6g} + {off:.6g})"
@@ -1261,7 +1261,7 @@ def _start_conflict(ik, ie, coef, off, keep_elim):
     warnings.warn(PlausibilityWarning(
         f"conflicting start values: {show(ie)} and {show(ik)} are both given, but they "
         f"{tied}; {used.name} = {used.start:.6g} is used. Give the start value on one of them "
-        f"only."), stacklevel=3)
+        f"only."), stacklevel=outside_stacklevel())
 
 
 def _unit(coef) -> bool:

@@ -16,6 +16,7 @@ __all__ = [
     "SolverError",
     "PlausibilityWarning",
     "StartValueWarning",
+    "StructureWarning",
 ]
 
 
@@ -64,3 +65,20 @@ class PlausibilityWarning(UserWarning):
 
 class StartValueWarning(UserWarning):
     """A start value given to a run was not kept: the consistent start computed another one."""
+
+
+class StructureWarning(UserWarning):
+    """The circuit compiles, but part of its structure limits what a run represents."""
+
+
+def outside_stacklevel() -> int:
+    """The ``stacklevel`` of :func:`warnings.warn` that points at the first caller outside
+    pvgraph (the line of the user's code that led to the warning), counted from the caller
+    of this function."""
+    import os
+    import sys
+    here = os.path.dirname(os.path.abspath(__file__)) + os.sep
+    frame, level = sys._getframe(1), 1
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(here):
+        frame, level = frame.f_back, level + 1
+    return level

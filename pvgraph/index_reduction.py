@@ -64,6 +64,7 @@ from __future__ import annotations
 import itertools
 import math
 import sys
+import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -73,7 +74,8 @@ from scipy.sparse.csgraph import maximum_bipartite_matching
 
 from . import expr as E
 from .component import EventSpec
-from .errors import InitializationError, SolverError, StructureError
+from .errors import InitializationError, SolverError, StructureError, StructureWarning, \
+    outside_stacklevel
 
 __all__ = ["time_derivative", "reduce_index", "IndexReduction", "derivative_name", "given_starts"]
 
@@ -716,6 +718,7 @@ class _Reducer:
             chains[src] = max(chains.get(src, 0), times)
         result.differentiated = [(self.orig[s].label, t, _short(E.to_text(self.orig[s].expr)))
                                  for s, t in sorted(chains.items()) if t]
+        _warn_switched(self.orig, chains)
         involved = {base for k, (src, _) in enumerate(self.eq_src) if chains[src]
                     for v in self.eq_inc[k] for base in [self.var_key[v][0]]}
         result.involved = involved
@@ -751,6 +754,41 @@ class _Reducer:
                     result.unwatched.extend(b.dummies)
             result.blocks.append(b)
         return out, new_events, new_observed, result
+
+
+def _warn_switched(equations, chains):
+    """Warn of each equation index reduction differentiates that reads an event-switched mode.
+
+    Its derivatives are taken with the modes held (and a linear table's slope is piecewise
+    constant), so where a switch makes its value jump (a step driving a position source) or
+    its slope jump (a ramp, a table's knot), the run re-initialises there: the position or
+    velocity jumps, and the impulse that jump takes (an unbounded force over no time) is in
+    no result."""
+    for src, times in sorted(chains.items()):
+        if not times:
+            continue
+        eq = equations[src]
+        modes = sorted({nm for _, nm in E.leaves(eq.expr, ("sym",)) if ".#" in nm})
+        tables = sorted({node.value.name for node in E.postorder([eq.expr])
+                         if node.op == "interp" and node.value.method == "linear"}) \
+            if times >= 2 else []
+        if not modes and not tables:
+            continue
+        what = []
+        if modes:
+            what.append(f"the event-switched mode{'s' if len(modes) > 1 else ''} "
+                        f"{', '.join(modes)}")
+        if tables:
+            what.append(f"the linear table{'s' if len(tables) > 1 else ''} "
+                        f"{', '.join(repr(t) for t in tables)} (its slope jumps at its knots)")
+        warnings.warn(StructureWarning(
+            f"index reduction differentiates {eq.label} {_times(times)}, and it reads "
+            f"{' and '.join(what)}: where a switch or a knot makes its value or its slope jump "
+            f"(a step, a ramp or a table driving a position or velocity source on a mass), "
+            f"the run re-initialises there, and the impulse "
+            f"of that jump is not represented (the force shows none). Drive the source with a "
+            f"smooth signal (a Sine, a filtered step) or put compliance (a spring, a volume) "
+            f"between the source and the mass."), stacklevel=outside_stacklevel())
 
 
 def _per_time(unit, order):

@@ -12,7 +12,7 @@ from typing import Iterable
 import numpy as np
 
 from .circuit import Circuit
-from .errors import PlausibilityWarning, PvgraphError, StartValueWarning
+from .errors import PlausibilityWarning, PvgraphError, StartValueWarning, outside_stacklevel
 from .system import System
 
 __all__ = ["simulate", "Solution"]
@@ -316,7 +316,7 @@ def _check_starts_kept(sol, given) -> None:
             f"{system.name}: start value for {name!r} ({value:.6g}) was not kept; the run "
             f"starts at {got:.6g}. {name!r} is an algebraic variable: the consistent start "
             f"computes it from the states, so its start value is a first guess only. Give "
-            f"start values of states instead ({shown})."), stacklevel=3)
+            f"start values of states instead ({shown})."), stacklevel=outside_stacklevel())
 
 
 def _start_value(system, name, value) -> float:

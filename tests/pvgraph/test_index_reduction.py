@@ -11,7 +11,7 @@ from scipy.special import ellipk
 
 from pvgraph.components.hydraulic import FlowSource, Tank, VolumeNode
 from pvgraph.components.mechanical import ForceInput, Mass, PositionInput, SpoolMass
-from pvgraph.components.signal import Constant, Sine, TimeTable
+from pvgraph.components.signal import Constant, Ramp, Sine, Step, TimeTable
 from pvgraph import (Circuit, Component, Hydraulic, InitializationError, Params,
                      SolverError, StructureError, Variable, der)
 from pvgraph import expr as E
@@ -303,3 +303,33 @@ def test_a_position_driven_mass_runs_on_both_backends_without_max_step():
         assert np.allclose(sol["m.v"], A * w * np.cos(w * t), rtol=0, atol=1e-6 * A * w), solver
         assert np.allclose(-sol["pos.flange.f"], -m * A * w * w * np.sin(w * t), rtol=0,
                            atol=1e-5 * m * A * w * w), solver
+
+
+@pytest.mark.parametrize("drive, warned", [
+    (lambda: Step(height=0.01, t_step=0.1), "the event-switched mode sig.#after"),
+    (lambda: Ramp(height=0.02, duration=0.2, t_start=0.1), "the event-switched modes sig.#ended, sig.#started"),
+    (lambda: TimeTable(t=(0.0, 0.1, 0.3), y=(0.0, 0.0, 0.02), method="linear"),
+     "the linear table 'sig"),
+    (lambda: Sine(amplitude=0.01, f=5.0), None),
+])
+def test_a_position_source_driven_by_a_jumping_signal_warns_of_the_lost_impulse(drive, warned):
+    """A step or a ramp on a position source makes the mass's position or velocity jump at the
+    switch; index reduction takes the source's derivatives with the switch held, so the run
+    re-initialises there and the force shows no impulse. The compiler says so; a smooth drive
+    compiles without a word."""
+    import warnings
+    from pvgraph.errors import StructureWarning
+    c = Circuit("drive")
+    mass = c.add("mass", Mass(m=5.0))
+    pos = c.add("pos", PositionInput())
+    sig = c.add("sig", drive())
+    c.connect(mass.flange, pos.flange)
+    c.connect(sig.y, pos.u)
+    if warned is None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", StructureWarning)
+            c.compile()
+        return
+    with pytest.warns(StructureWarning, match=rf"differentiates sig equation 1 .* twice, and it "
+                                              rf"reads {warned}.*impulse"):
+        c.compile()
