@@ -15,7 +15,7 @@ from pvgraph.solver.events import (CHATTER_EVENTS, EventTracker, atol_vector, ch
                                    normalize_events, stopping_event)
 from pvgraph.solver.cstep import ADV_END, ADV_PAUSE, make_integrator
 from pvgraph.solver.cstep import c_run as _c_run, c_system_of as _c_system_of
-from pvgraph.solver.ida import SOLVER_NAME, UROUND, initial_step
+from pvgraph.solver.ida import ERROR_FAIL, SOLVER_NAME, UROUND, dominant_names, initial_step
 from pvgraph.solver.initial import start_values
 from pvgraph.solver.linalg import JacobianEvaluator, LUSolver
 from pvgraph.solver.result import DAEResult, DenseOutput, EventRecord
@@ -276,6 +276,22 @@ def _chattering(state, te, fired, event_list, h):
     return t_first, count, te
 
 
+def _why_many_steps(integ, var_names) -> str:
+    """What held the step size, for the message of a run out of steps: the share of steps
+    that failed the local error test and the variables whose error estimate dominates, or the
+    usual suspects."""
+    nst, netf = max(int(getattr(integ, "nst", 0)), 1), int(getattr(integ, "netf", 0))
+    fail = getattr(integ, "_fail", None)    # (kind, weighted error) of the last failure
+    if netf < 0.3 * nst or fail is None or fail[0] != ERROR_FAIL:
+        return "check the model for fast oscillations or chattering events."
+    names = dominant_names(np.abs(np.asarray(fail[1])), var_names)
+    return (f"loosen the tolerances: {netf} of the {nst} steps failed the local error test "
+            f"(order {integ.kused} at the end), the step size is held by the local error of "
+            f"{', '.join(map(repr, names))}. An algebraic variable that amplifies the error of "
+            f"a state (it reads a state times a large gain) does this; leave it out of the "
+            f"error test (suppress_alg=True) or tighten atol of that state.")
+
+
 def _apply_actions(fired, event_list, te, ye, ype, initialise, mode):
     """The state after the actions of the events ``fired`` at ``te`` (in declaration order),
     made consistent."""
@@ -391,9 +407,8 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         if integ.nst - steps_at_start >= max_steps:
             raise SolverError(
                 f"{SOLVER_NAME} reached max_steps = {max_steps} at t = {integ.tn:.9g} (h = "
-                f"{integ.hh:.3g}) before t_end = {t_end:.9g}; raise max_steps or check "
-                "the model for fast oscillations or chattering events.",
-                t=integ.tn, h=integ.hh)
+                f"{integ.hh:.3g}) before t_end = {t_end:.9g}; raise max_steps or "
+                f"{_why_many_steps(integ, var_names)}", t=integ.tn, h=integ.hh)
         if run is not None:
             i_from = run.i_eval = i_eval
             status = integ.advance(run)

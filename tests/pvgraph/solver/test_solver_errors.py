@@ -42,6 +42,29 @@ def test_max_steps_is_reported():
         solve_dae(lambda t, y, yp: yp + y, (0.0, 100.0), [1.0], [-1.0], max_steps=5)
 
 
+def _amplifying(t, y, yp):
+    """y1' = y2, 0 = y2 + 1000 (y1 - sin t) - cos t: y1 = sin t + exp(-1000 t), y2 = y1'.
+    The algebraic y2 carries the error of y1 times 1000."""
+    return np.array([yp[0] - y[1], y[1] + 1000.0 * (y[0] - np.sin(t)) - np.cos(t)])
+
+
+def test_steps_held_by_an_amplifying_algebraic_variable_are_explained():
+    with pytest.raises(SolverError, match=r"max_steps = 500 .* failed the local error test "
+                                          r".* held by the local error of 'y2'.*"
+                                          r"suppress_alg=True") as info:
+        solve_dae(_amplifying, (0.0, 10.0), [1.0, -999.0], [-999.0, 0.0], rtol=1e-4,
+                  atol=1e-6, algebraic=[False, True], max_steps=500, var_names=["y1", "y2"])
+    assert "oscillations" not in str(info.value)
+    # the advice works: out of the error test, y2 no longer holds the step, and both follow
+    # the closed form to the tolerance in a few hundred steps
+    t = np.linspace(1.0, 10.0, 10)
+    sol = solve_dae(_amplifying, (0.0, 10.0), [1.0, -999.0], [-999.0, 0.0], rtol=1e-6,
+                    atol=1e-8, algebraic=[False, True], suppress_alg=True, t_eval=t)
+    assert sol.stats["nsteps"] < 1000
+    assert np.max(np.abs(sol.y[:, 0] - np.sin(t))) < 1e-7
+    assert np.max(np.abs(sol.y[:, 1] - np.cos(t))) < 1e-4
+
+
 def test_nonfinite_initial_residual_is_an_initialization_error():
     with pytest.raises(InitializationError, match="equation 0"):
         solve_dae(lambda t, y, yp: yp + np.log(y - 1.0), (0.0, 1.0), [0.5], [0.0],
