@@ -31,6 +31,7 @@ alias elimination, each volume contributes its own flow unknown, and the DAE sta
 from __future__ import annotations
 
 import gc
+import warnings
 import itertools
 import zlib
 from dataclasses import dataclass
@@ -479,9 +480,12 @@ def _connection_equations(root, leaves, infos, keys=None) -> list[_Equation]:
         members.setdefault(find(k), []).append(k)
     groups = sorted(members.values(), key=lambda g: g[0])
     equations = []
+    shorted = []    # (component path, its ports on one node, the domain)
     for group in groups:
         ports = [attrs[k] for k in group if attrs[k][3]]
         ports.sort(key=lambda a: a[0])
+        if len(ports) > 1:
+            _note_shorted(ports, shorted)
         labels = [a[0] for a in ports]
         exposed = sorted(attrs[k][0] for k in group if not attrs[k][3])
         specs = [type(a[1]).ports[a[2]] for a in ports]
@@ -524,7 +528,37 @@ def _connection_equations(root, leaves, infos, keys=None) -> list[_Equation]:
         if keys is not None:    # ``q1 + q2 + ... + qn`` summed from the left
             keys.append((("connection", "sum", len(through)),
                          tuple(q.value for q in through), nodes))
+    if shorted:
+        from .errors import PlausibilityWarning, outside_stacklevel
+        told = "; ".join(f"{path!r} ({', '.join(names)})" for path, names, _ in shorted[:5])
+        more = f" and {len(shorted) - 5} more" if len(shorted) > 5 else ""
+        warnings.warn(PlausibilityWarning(
+            f"component{'s' if len(shorted) > 1 else ''} with two ports on one node: "
+            f"{told}{more}. The node joins them, so the component sees no difference across "
+            f"them (a short circuit: an orifice passes no flow, a spring holds no force). "
+            f"Check the connections: a port may have been connected twice."),
+            stacklevel=outside_stacklevel())
     return equations
+
+
+def _note_shorted(ports, shorted):
+    """Add to ``shorted`` each component with two or more (non-signal) ports among the
+    ``(label, component, port, leaf)`` of one connection set."""
+    seen: dict[int, tuple] = {}
+    for label, comp, pname, _ in ports:
+        if type(comp).ports[pname].domain is not SIGNAL:
+            seen.setdefault(id(comp), (comp, []))[1].append((label, pname))
+    for comp, got in seen.values():
+        # all of the component's ports on this one node, all of one domain: a two-port
+        # element (orifice, line, valve, spring) bridged. A valve's pilot joined to its outlet
+        # at the tank, with its other ports elsewhere, is a circuit; so are the two chambers
+        # of a cylinder joined (regeneration: a converter to another domain is not named)
+        domain = type(comp).ports[got[0][1]].domain
+        mine = [p for p, spec in type(comp).ports.items() if spec.domain is not SIGNAL]
+        if len(got) > 1 and len(got) == len(mine) and all(
+                type(comp).ports[p].domain is domain for p in mine):
+            label, _ = got[0]
+            shorted.append((label.rsplit(".", 1)[0], [p for _, p in got], None))
 
 
 def _connection_key(e):
