@@ -71,8 +71,9 @@ class OperatingPoint:
         ``F_p`` is the compiled parameter derivative dF/dp; one factorisation of F_y serves
         every parameter. ``params`` defaults to every runtime parameter of the system.
         """
+        from ..simulate import _name_list
         s = self.system
-        params = [params] if isinstance(params, str) else params
+        params = None if params is None else _name_list(params, "state_sensitivity: params")
         Fp = s.parameter_jacobian(self.t, self.y, self.yp, params)
         return self.solve_linear(-Fp)
 
@@ -115,9 +116,10 @@ class OperatingPoint:
         names (default: all). The steady state moves with the parameters: ``d out/dp =
         d out/dy dy/dp + d out/dp`` with ``dy/dp = -F_y^-1 F_p`` (:meth:`state_sensitivity`).
         """
+        from ..simulate import _name_list
         s = self.system
-        outputs = [outputs] if isinstance(outputs, str) else list(outputs)
-        params = [params] if isinstance(params, str) else params
+        outputs = _name_list(outputs, "sensitivity: outputs")
+        params = None if params is None else _name_list(params, "sensitivity: params")
         S = self.state_sensitivity(params) if dy_dp is None else dy_dp
         rows = []
         for name in outputs:
