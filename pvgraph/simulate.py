@@ -264,6 +264,9 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         raise PvgraphError(f"t_end ({t_end!r}) must be finite and greater than t_start "
                            f"({t_start!r})")
     system = target.compile() if isinstance(target, Circuit) else target
+    if params is not None:
+        from .circuit import parameter_values
+        params = parameter_values(params, "simulate: params")
     if params:
         system = system.with_params(params)
     y_init = _full_vector(system, system.y0 if y0 is None else y0, "y0")

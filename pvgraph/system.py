@@ -596,7 +596,11 @@ class System:
         a :class:`RecompileWarning` naming the parameters; with ``recompile=False`` a
         :class:`~pvgraph.errors.ParameterError` is raised.
         """
-        values = dict(values or {})
+        from .circuit import parameter_values
+        if not isinstance(recompile, (bool, np.bool_)):
+            raise ParameterError(f"{self.name}: with_params(recompile=...) takes True or False, "
+                                 f"got {recompile!r}")
+        values = {} if values is None else parameter_values(values, f"{self.name}: with_params values")
         new = self._copy()
         if not values:
             return new

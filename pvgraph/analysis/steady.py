@@ -448,9 +448,9 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
                            f"{max_iter!r}")
     if not (isinstance(t, (int, float)) and math.isfinite(t)):
         raise PvgraphError(f"steady_state: t must be a finite time [s], got {t!r}")
-    if params is not None and not isinstance(params, Mapping):
-        raise PvgraphError(f"steady_state: params must be a mapping {{name: value}}, got "
-                           f"{type(params).__name__}")
+    if params is not None:
+        from ..circuit import parameter_values
+        params = parameter_values(params, "steady_state: params")
     if isinstance(system, Circuit):
         system = system.compile()
     if not isinstance(system, System):
