@@ -81,6 +81,9 @@ class LinearModel:
         if isinstance(key, (bool, np.bool_)):
             raise TypeError(f"{what} {key!r}: give a name or an index, not a bool")
         if isinstance(key, (int, np.integer)):
+            if not names:
+                raise IndexError(f"the model has no {what}s, so it has no {what} {int(key)} "
+                                 f"(linearise with at least one {what})")
             if not -len(names) <= int(key) < len(names):
                 raise IndexError(f"{what} index {int(key)} is out of range: the model has "
                                  f"{len(names)} {what}s {names}")
@@ -217,6 +220,12 @@ class LinearModel:
         largest (a slow leakage pole all but cancelled by a zero) sets neither.
         """
         import control
+        known = ("timepts", "timepts_num", "final_output", "params", "SettlingTimeThreshold",
+                 "RiseTimeLimits")
+        unknown = [k for k in options if k not in known]
+        if unknown:
+            raise TypeError(f"step_info: unknown option(s) {unknown}; control.step_info takes "
+                            f"{', '.join(known)}")
         sys = self.siso(output, input)
         if "timepts" not in options:
             options["timepts"] = _step_grid(sys.A, sys.B, sys.C)

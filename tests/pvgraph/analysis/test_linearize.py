@@ -434,3 +434,12 @@ def test_an_operating_point_of_another_system_is_refused():
         linearize(other, op, {}, ["node.port.p"])
     same = _demo_circuit(1e-4).compile()      # another compile of the same circuit is fine
     assert linearize(same, op, {}, ["node.port.p"]).A.shape == (1, 1)
+
+
+def test_a_model_without_inputs_and_unknown_step_info_options_are_named():
+    lm = _model(__import__("control").tf([1.0], [1.0, 3.0, 2.0]))
+    no_inputs = LinearModel(lm.A, lm.B[:, :0], lm.C, lm.D[:, :0], lm.state_names, [], ["y"])
+    with pytest.raises(IndexError, match="the model has no inputs"):
+        no_inputs.step_info()
+    with pytest.raises(TypeError, match=r"step_info: unknown option\(s\) \['bogus'\]"):
+        lm.step_info(bogus=1)
