@@ -144,7 +144,8 @@ class LinearModel:
         if w.ndim != 1 or w.size == 0 or not np.all(np.isfinite(w)) or np.any(w < 0.0):
             raise ValueError(f"w: a non-empty 1-D array of finite frequencies >= 0 [rad/s], got "
                              f"shape {w.shape}" + ("" if w.size == 0 else
-                                                   f", from {w.min()!r} to {w.max()!r}"))
+                                                   f", from {float(w.min()):g} to "
+                                                   f"{float(w.max()):g}"))
         A, b, c, d = self.A, self.B[:, j], self.C[i], self.D[i, j]
         eye = np.eye(A.shape[0])
         return np.array([c @ np.linalg.solve(1j * wk * eye - A, b) + d for wk in w])
@@ -576,4 +577,9 @@ def linearize_circuit(build: Callable[[dict], object], u0: Mapping[str, float],
     for nm in u0:
         cols[nm], direct[nm] = _input_derivatives(build, u0, nm, op, list(outputs), eps_rel,
                                                   du.get(nm))
+    unused = [nm for nm in u0 if not np.any(cols[nm]) and not np.any(direct[nm])]
+    if unused:
+        warnings.warn(f"linearize_circuit: input(s) {unused} change nothing in the circuit "
+                      f"(dF/du = 0): does build(u) read u[{unused[0]!r}]? The model's column "
+                      f"for it is zero", UserWarning, stacklevel=2)
     return linearize(system, op, cols, outputs, direct=direct)

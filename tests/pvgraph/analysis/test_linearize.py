@@ -443,3 +443,11 @@ def test_a_model_without_inputs_and_unknown_step_info_options_are_named():
         no_inputs.step_info()
     with pytest.raises(TypeError, match=r"step_info: unknown option\(s\) \['bogus'\]"):
         lm.step_info(bogus=1)
+
+
+def test_an_input_the_builder_ignores_is_warned_about():
+    """u0 = {"Q": ..., "Zzz": ...} with a builder that never reads "Zzz" gave a zero column
+    without a word; the model is still returned (B for Q is beta/V)."""
+    with pytest.warns(UserWarning, match=r"input\(s\) \['Zzz'\] change nothing"):
+        lm = linearize_circuit(lambda u: laminar(u), {"Q": Q, "Zzz": 1.0}, ["node.port.p"])
+    assert lm.B[0, 0] == pytest.approx(BETA / V, rel=1e-9) and lm.B[0, 1] == 0.0
