@@ -327,7 +327,7 @@ def _dc_gain_singular(A, B, C, D, state_names):
     n = A.shape[0]
     scale = max(np.linalg.norm(A, 1), np.finfo(float).tiny)
     lam = np.linalg.eigvals(A)
-    tol = max(1e3 * np.finfo(float).eps * scale, np.min(np.abs(lam)) * (1.0 + 1e-9))
+    tol = max(1e3 * np.finfo(float).eps * scale, np.min(np.abs(lam)) * (1.0 + 1e-6))
     T, Q, k = sla.schur(A, output="real", sort=lambda re, im: math.hypot(re, im) <= tol)
     k = max(int(k), 1)
     T11, T12, T22 = T[:k, :k], T[:k, k:], T[k:, k:]

@@ -23,7 +23,6 @@ the start point (the size of the row's terms), so the tolerance is relative.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
