@@ -396,7 +396,7 @@ class Circuit:
 
     def check_parameters(self, values: dict) -> None:
         """Raise :class:`ParameterError` if ``{"component.field": value}`` would be invalid."""
-        self._validated(values)
+        self._validated(parameter_values(values, f"{self.path}.check_parameters: values"))
 
     def set_parameters(self, values: dict) -> None:
         """Set parameters by dotted path, ``{"orifice.A": "2 mm^2", "pump.Q": 1e-4}`` (or a

@@ -119,6 +119,8 @@ def test_parameter_values_are_a_mapping_or_name_value_pairs_everywhere():
             c.set_parameters(bad)
     with pytest.raises(ParameterError, match="set_parameters: values must be a mapping.*None"):
         c.set_parameters(None)
+    with pytest.raises(ParameterError, match="check_parameters: values must be a mapping"):
+        c.check_parameters(["orifice.K"])
     with pytest.raises(ParameterError, match="simulate: params must be a mapping"):
         simulate(s, 1.0, params=["orifice.K"])
     with pytest.raises(ParameterError, match=r"recompile=...\) takes True or False, got 'no'"):
