@@ -555,7 +555,8 @@ def linearize_circuit(build: Callable[[dict], object], u0: Mapping[str, float],
     """
     if not isinstance(u0, Mapping) or not u0:
         raise PvgraphError(f"u0: a non-empty mapping {{input name: value}}, got {u0!r}")
-    outputs = [outputs] if isinstance(outputs, str) else list(outputs)
+    from ..simulate import _name_list
+    outputs = _name_list(outputs, "linearize_circuit: outputs")
     if not outputs:
         raise PvgraphError("outputs: name at least one variable")
     if not (isinstance(eps_rel, (int, float)) and eps_rel > 0.0 and math.isfinite(eps_rel)):

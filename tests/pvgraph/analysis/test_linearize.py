@@ -422,6 +422,8 @@ def test_more_bad_arguments_to_linear_models_are_named():
         linearize(system, op, {"Q": np.ones(n)}, [["node.port.p"]])
     with pytest.raises(TypeError, match="sensitivity: outputs: names are strings"):
         op.sensitivity([["node.port.p"]], ["orifice.A"])
+    with pytest.raises(TypeError, match="linearize_circuit: outputs: names are strings, got 1"):
+        linearize_circuit(lambda u: _demo_circuit(u["pump.Q"]), {"pump.Q": 1e-4}, [1])
 
 
 def test_an_operating_point_of_another_system_is_refused():
