@@ -24,6 +24,7 @@ import os
 import re
 import warnings
 from collections import OrderedDict
+from collections.abc import Mapping
 
 from pydantic import BaseModel
 
@@ -395,10 +396,12 @@ class Circuit:
 
     def check_parameters(self, values: dict) -> None:
         """Raise :class:`ParameterError` if ``{"component.field": value}`` would be invalid."""
-        self._validated(values)
+        self._validated(parameter_values(values, f"{self.path}.check_parameters: values"))
 
     def set_parameters(self, values: dict) -> None:
-        """Set parameters by dotted path, ``{"orifice.A": "2 mm^2", "pump.Q": 1e-4}``."""
+        """Set parameters by dotted path, ``{"orifice.A": "2 mm^2", "pump.Q": 1e-4}`` (or a
+        list of ``(name, value)`` pairs, as :meth:`System.with_params` takes)."""
+        values = parameter_values(values, f"{self.path}.set_parameters: values")
         for comp, params in self._validated(values):
             comp.params = params
 
@@ -433,6 +436,31 @@ class Circuit:
 
     def __repr__(self):
         return f"<Circuit {self.path} with {len(self._components)} components>"
+
+
+def parameter_values(values, where: str) -> dict:
+    """``{name: value}`` from a mapping or from ``(name, value)`` pairs; anything else (one
+    name, a list of names, None) raises :class:`ParameterError` naming ``where``."""
+    expected = ("a mapping {'component.field': value} or a list of (name, value) pairs, "
+                "e.g. {'orifice.A': '2 mm^2'}")
+    if isinstance(values, Mapping):
+        pairs = list(values.items())
+    elif isinstance(values, (str, bytes)) or values is None:
+        raise ParameterError(f"{where} must be {expected}; got {values!r}")
+    else:
+        try:
+            pairs = [tuple(item) if not isinstance(item, (str, bytes)) else (item,)
+                     for item in values]
+        except TypeError:
+            raise ParameterError(f"{where} must be {expected}; got {values!r}") from None
+        bad = [item for item in pairs if len(item) != 2]
+        if bad:
+            raise ParameterError(f"{where} must be {expected}; got {values!r}")
+    names = [k for k, _ in pairs if not isinstance(k, str)]
+    if names:
+        raise ParameterError(f"{where}: parameter names are strings ('component.field'), "
+                             f"got {names[0]!r}")
+    return dict(pairs)
 
 
 def _leaves(circuit: Circuit) -> list:

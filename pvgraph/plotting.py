@@ -32,9 +32,13 @@ def _save(fig, path):
 
 def plot_solution(sol, names, path, *, title=None, si=False):
     """One panel per unit: the named variables over time, in bar, L/min, mm (SI if ``si``)."""
-    names = [names] if isinstance(names, str) else list(names)
+    from .simulate import _name_list
+    names = _name_list(names, "plot_solution: names")
     if not names:
-        raise ValueError("plot_solution: name at least one variable")
+        raise ValueError("plot_solution: names is empty; name at least one variable")
+    if os.path.isdir(path):
+        raise IsADirectoryError(f"plot_solution: path {os.fspath(path)!r} is a directory; give "
+                                f"a file name in it (e.g. {os.path.join(path, 'plot.png')!r})")
     groups: dict[str, list[str]] = {}
     for n in names:
         groups.setdefault(sol.unit(n), []).append(n)

@@ -73,6 +73,9 @@ class Solution:
 
     def der(self, name: str) -> np.ndarray:
         """Time derivative of a variable over the run."""
+        if not isinstance(name, str):
+            raise TypeError(f"sol.der() takes a variable name (sol.der('node.port.p')), got "
+                            f"{name!r}")
         if name in self.system.observed:
             # by differences within each stretch between events (an event repeats its time:
             # the values before and after it are two sides, not a difference over dt = 0)
@@ -119,8 +122,7 @@ class Solution:
 
     def to_csv(self, path, names: Iterable[str] | None = None) -> None:
         """Write time and the named variables (default: all unknowns) to ``path`` atomically."""
-        names = [names] if isinstance(names, str) else (
-            list(names) if names is not None else list(self.system.names))
+        names = list(self.system.names) if names is None else _name_list(names, "to_csv: names")
         if not names:
             raise PvgraphError("to_csv: name at least one variable (or none for all unknowns)")
         cols = [self[n] for n in names]
@@ -144,8 +146,28 @@ def _write_csv(f, header, t, cols):
         w.writerow([repr(float(t[k]))] + [repr(float(c[k])) for c in cols])
 
 
+def _name_list(names, what: str) -> list:
+    """``names`` as a list of str: one str is one name, otherwise an iterable of str."""
+    if isinstance(names, str):
+        return [names]
+    try:
+        out = list(names)
+    except TypeError:
+        raise TypeError(f"{what}: give a name or a list of names, got {names!r}") from None
+    bad = [n for n in out if not isinstance(n, str)]
+    if bad:
+        raise TypeError(f"{what}: names are strings, got {bad[0]!r} in {out!r}")
+    return out
+
+
 def _atomic_write(path, write):
-    path = os.fspath(path)
+    try:
+        path = os.fspath(path)
+    except TypeError:
+        raise TypeError(f"path: a file name (str or os.PathLike), got {path!r}") from None
+    if os.path.isdir(path):
+        raise IsADirectoryError(f"{path!r} is a directory; give a file name in it "
+                                f"(e.g. {os.path.join(path, 'result.csv')!r})")
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=os.path.basename(path))
@@ -244,6 +266,9 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         raise PvgraphError(f"t_end ({t_end!r}) must be finite and greater than t_start "
                            f"({t_start!r})")
     system = target.compile() if isinstance(target, Circuit) else target
+    if params is not None:
+        from .circuit import parameter_values
+        params = parameter_values(params, "simulate: params")
     if params:
         system = system.with_params(params)
     y_init = _full_vector(system, system.y0 if y0 is None else y0, "y0")

@@ -588,7 +588,8 @@ class System:
                     recompile: bool = True) -> "System":
         """This system with other parameter values, sharing its compiled code.
 
-        ``values`` maps parameter names (``"orifice.A"``: component path and field) to numbers.
+        ``values`` maps parameter names (``"orifice.A"``: component path and field) to numbers
+        (a list of ``(name, value)`` pairs is taken too).
         Values are validated by the component's parameter model (bounds, cross-field rules).
         A runtime parameter only changes the parameter vector (and the start values that depend
         on it). A structural parameter (one the equations turn into a plain number, or a field
@@ -596,7 +597,12 @@ class System:
         a :class:`RecompileWarning` naming the parameters; with ``recompile=False`` a
         :class:`~pvgraph.errors.ParameterError` is raised.
         """
-        values = dict(values or {})
+        from .circuit import parameter_values
+        if not isinstance(recompile, (bool, np.bool_)):
+            raise ParameterError(f"{self.name}: with_params(recompile=...) takes True or False, "
+                                 f"got {recompile!r}")
+        values = {} if values is None else parameter_values(
+            values, f"{self.name}: with_params values")
         new = self._copy()
         if not values:
             return new

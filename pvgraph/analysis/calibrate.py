@@ -73,6 +73,17 @@ class FitParameter:
     display: Callable[[float], float] | None = None
 
     def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name:
+            raise CalibrationError(f"FitParameter: name must be a non-empty str, got "
+                                   f"{self.name!r}")
+        for what, value in (("initial value", self.initial), ("lower bound", self.lower),
+                            ("upper bound", self.upper)):
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating,
+                                                                 np.integer)):
+                raise CalibrationError(
+                    f"{self.name}: {what} {value!r} must be a number in SI units (the mapping "
+                    f"form of calibrate's parameters takes quantities: {{{self.name!r}: "
+                    f"'2 mm^2'}})")
         if not (math.isfinite(self.initial)):
             raise CalibrationError(f"{self.name}: initial value {self.initial!r} is not finite")
         if not self.lower < self.upper:
@@ -81,7 +92,8 @@ class FitParameter:
         if not self.lower <= self.initial <= self.upper:
             raise CalibrationError(f"{self.name}: initial value {self.initial:g} lies outside "
                                    f"its bounds [{self.lower:g}, {self.upper:g}]")
-        if self.scale is not None and not (self.scale > 0 and math.isfinite(self.scale)):
+        if self.scale is not None and not (isinstance(self.scale, (int, float, np.floating))
+                                           and self.scale > 0 and math.isfinite(self.scale)):
             raise CalibrationError(f"{self.name}: scale must be positive, got {self.scale!r}")
 
     @property
@@ -160,7 +172,22 @@ class CalibrationResult:
 
     def table(self, reference: Mapping[str, float] | None = None,
               reference_label: str = "reference") -> str:
-        """A plain-text table of the estimates (display units), optionally beside references."""
+        """A plain-text table of the estimates (display units), optionally beside references.
+
+        ``reference`` maps parameter names to values (SI); it may hold more names than were
+        fitted (a fitted name it lacks shows '-'), but not only others.
+        """
+        if reference is not None:
+            if not isinstance(reference, Mapping):
+                raise CalibrationError(f"table: reference must be a mapping {{parameter name: "
+                                       f"value}}, got {reference!r}")
+            if reference and not any(nm in reference for nm in self.names):
+                import difflib
+                key = next(iter(reference))
+                close = difflib.get_close_matches(str(key), self.names, n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                raise KeyError(f"table: the reference names no fitted parameter ({key!r}"
+                               f"{hint}, ...); fitted: {self.names}")
         pct = f"{100 * self.confidence:.0f} % interval"
         head = f"{'parameter':28s} {'unit':>10s} {'initial':>10s} {'estimate':>10s} {pct:>23s}"
         if reference:
@@ -216,9 +243,16 @@ def _as_parameters(parameters) -> list[FitParameter]:
             else:
                 out.append(_from_spec(name, spec))
         parameters = out
+    if isinstance(parameters, (str, bytes)):
+        parameters = [parameters]
     parameters = list(parameters)
     if not parameters:
         raise CalibrationError("no parameters to fit")
+    for p in parameters:
+        if not isinstance(p, FitParameter):
+            raise CalibrationError(
+                f"parameters: give FitParameter objects or a mapping {{name: initial}} or "
+                f"{{name: (initial, lower, upper)}}, got {p!r} in {parameters!r}")
     names = [p.name for p in parameters]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
@@ -250,6 +284,17 @@ def _from_spec(name, spec) -> FitParameter:
     if unit:
         return FitParameter(name, *values, unit=unit, display=lambda v, f=factor: v / f)
     return FitParameter(name, *values)
+
+
+def _numbers(values, what, *, ravel=True) -> np.ndarray:
+    """``values`` as a float array, or a CalibrationError naming ``what``."""
+    if isinstance(values, (str, bytes)):
+        raise CalibrationError(f"{what} must be numbers, got {values!r}")
+    try:
+        out = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise CalibrationError(f"{what} must be numbers, got {values!r}") from None
+    return out.ravel() if ravel else out
 
 
 def _central_jacobian(evaluate, z, f0, lo, hi, step):
@@ -320,33 +365,36 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
     from scipy import optimize, stats
 
     params = _as_parameters(parameters)
-    y = np.asarray(measured, dtype=float).ravel()
+    y = _numbers(measured, "measured")
     m, n = y.size, len(params)
+    if isinstance(labels, str):
+        labels = [labels]
     labels = list(labels) if labels is not None else [f"datum {i}" for i in range(m)]
     if len(labels) != m:
         raise CalibrationError(f"{len(labels)} labels for {m} measurements")
     bad = [labels[i] for i in np.flatnonzero(~np.isfinite(y))]
     if bad:
         raise CalibrationError(f"measurements are not finite: {bad[:5]}")
-    s = np.asarray(1.0 if sigma is None else sigma, dtype=float)
+    s = _numbers(1.0 if sigma is None else sigma, "sigma", ravel=False)
     if s.ndim > 1 or (s.ndim == 1 and s.size != m):
         raise CalibrationError(f"sigma has {s.size} values for {m} measurements (give one "
-                               f"value, or one per measurement)")
+                               f"value, or one per measurement: shape ({m},), got {s.shape})")
     s = np.broadcast_to(s, (m,)).copy()
     for what, value in (("diff_step", diff_step), ("cov_step", cov_step)):
         if not (isinstance(value, (int, float)) and 0.0 < value < 1.0):
             raise CalibrationError(f"{what} must lie in (0, 1), got {value!r}")
     if not (isinstance(rcond, (int, float)) and 0.0 <= rcond < 1.0):
         raise CalibrationError(f"rcond must lie in [0, 1), got {rcond!r}")
-    if max_nfev is not None and not (isinstance(max_nfev, int) and max_nfev >= 1):
+    if max_nfev is not None and not (isinstance(max_nfev, int) and not isinstance(max_nfev, bool)
+                                     and max_nfev >= 1):
         raise CalibrationError(f"max_nfev must be a positive integer, got {max_nfev!r}")
     bad = [labels[i] for i in np.flatnonzero(~(s > 0) | ~np.isfinite(s))]
     if bad:
         raise CalibrationError(f"sigma must be positive and finite; not so for {bad[:5]}")
     if m < n:
         raise CalibrationError(f"{m} measurements cannot determine {n} parameters")
-    if not 0.0 < confidence < 1.0:
-        raise CalibrationError(f"confidence must lie in (0, 1), got {confidence}")
+    if not (isinstance(confidence, (int, float)) and 0.0 < confidence < 1.0):
+        raise CalibrationError(f"confidence must lie in (0, 1), got {confidence!r}")
 
     scale = np.array([p.unit_scale for p in params])
     z0 = np.array([p.initial for p in params]) / scale
@@ -359,11 +407,19 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
         theta = dict(zip(names, (z * scale).tolist()))
         counter["nfev"] += 1
         try:
-            pred = np.asarray(predict(theta), dtype=float).ravel()
+            raw = predict(theta)
         except PvgraphError as exc:
             if strict:
                 raise CalibrationError(f"the model fails at the initial parameters: {exc}") from exc
             return None
+        if raw is None:
+            raise CalibrationError(f"predict returned None; it must return {m} predictions "
+                                   f"(one per measurement)")
+        try:
+            pred = np.asarray(raw, dtype=float).ravel()
+        except (TypeError, ValueError):
+            raise CalibrationError(f"predict returned {raw!r}; it must return {m} numbers "
+                                   f"(one per measurement)") from None
         if pred.size != m:
             raise CalibrationError(f"predict returned {pred.size} values for {m} measurements")
         if not np.all(np.isfinite(pred)):

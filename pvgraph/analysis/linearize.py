@@ -35,6 +35,7 @@ perturbed inside it. Inputs are therefore given either
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Callable, Mapping, NamedTuple, Sequence
 
@@ -80,10 +81,16 @@ class LinearModel:
         if isinstance(key, (bool, np.bool_)):
             raise TypeError(f"{what} {key!r}: give a name or an index, not a bool")
         if isinstance(key, (int, np.integer)):
+            if not names:
+                raise IndexError(f"the model has no {what}s, so it has no {what} {int(key)} "
+                                 f"(linearise with at least one {what})")
             if not -len(names) <= int(key) < len(names):
                 raise IndexError(f"{what} index {int(key)} is out of range: the model has "
                                  f"{len(names)} {what}s {names}")
             return int(key) % len(names)
+        if not isinstance(key, str):
+            raise TypeError(f"{what} {key!r}: give a name or an integer index; the {what}s are "
+                            f"{names}")
         if key in names:
             return names.index(key)
         system = self.op.system if self.op is not None else None
@@ -101,12 +108,29 @@ class LinearModel:
         return ev[np.argsort(-ev.real, kind="stable")]
 
     def dc_gain(self) -> np.ndarray:
-        """Steady-state gain ``D - C A^-1 B`` (outputs x inputs)."""
+        """Steady-state gain ``G(0) = D - C A^-1 B`` (outputs x inputs).
+
+        With a pole at s = 0 (an integrator: a cylinder position, a shaft angle) ``A`` is
+        singular. As python-control's ``dcgain``, the gain is then infinite, but only on the
+        paths the integrator lies on (it is excited by the input and seen by the output):
+        those entries are ``+inf`` or ``-inf`` (the sign of ``G(s)`` as s -> 0+, the direction
+        in which a step makes the output ramp) and a ``RuntimeWarning`` names the integrating
+        states; the other entries are their finite limits.
+        """
         try:
-            return self.D - self.C @ np.linalg.solve(self.A, self.B)
-        except np.linalg.LinAlgError:
-            raise PvgraphError(f"the model has a pole at s = 0 (an integrator: "
-                               f"{self.state_names[:4]} ...): its DC gain is infinite") from None
+            with warnings.catch_warnings():
+                warnings.simplefilter("error", RuntimeWarning)
+                G = self.D - self.C @ np.linalg.solve(self.A, self.B)
+            if np.all(np.isfinite(G)):
+                return G
+        except (np.linalg.LinAlgError, RuntimeWarning):
+            pass
+        G, integrators = _dc_gain_singular(self.A, self.B, self.C, self.D, self.state_names)
+        if np.isinf(G).any():
+            warnings.warn(f"dc_gain: the model has a pole at s = 0 (an integrator in "
+                          f"{integrators}); the DC gain is infinite on the paths through it",
+                          RuntimeWarning, stacklevel=2)
+        return G
 
     def frequency_response(self, w, output=0, input=0) -> np.ndarray:
         """``G(j w) = C (j w I - A)^-1 B + D`` of the path ``input -> output`` at the angular
@@ -120,7 +144,8 @@ class LinearModel:
         if w.ndim != 1 or w.size == 0 or not np.all(np.isfinite(w)) or np.any(w < 0.0):
             raise ValueError(f"w: a non-empty 1-D array of finite frequencies >= 0 [rad/s], got "
                              f"shape {w.shape}" + ("" if w.size == 0 else
-                                                   f", from {w.min()!r} to {w.max()!r}"))
+                                                   f", from {float(w.min()):g} to "
+                                                   f"{float(w.max()):g}"))
         A, b, c, d = self.A, self.B[:, j], self.C[i], self.D[i, j]
         eye = np.eye(A.shape[0])
         return np.array([c @ np.linalg.solve(1j * wk * eye - A, b) + d for wk in w])
@@ -145,6 +170,10 @@ class LinearModel:
         python-control forbids '.' in signal names, so dots become '_' there.
         """
         import control
+        if not self.input_names or not self.output_names:
+            raise PvgraphError(f"to_control: the model has {len(self.input_names)} inputs and "
+                               f"{len(self.output_names)} outputs; python-control needs at "
+                               f"least one of each")
 
         def clean(names):
             return [str(nm).replace(".", "_") for nm in names]
@@ -192,6 +221,12 @@ class LinearModel:
         largest (a slow leakage pole all but cancelled by a zero) sets neither.
         """
         import control
+        known = ("timepts", "timepts_num", "final_output", "params", "SettlingTimeThreshold",
+                 "RiseTimeLimits")
+        unknown = [k for k in options if k not in known]
+        if unknown:
+            raise TypeError(f"step_info: unknown option(s) {unknown}; control.step_info takes "
+                            f"{', '.join(known)}")
         sys = self.siso(output, input)
         if "timepts" not in options:
             options["timepts"] = _step_grid(sys.A, sys.B, sys.C)
@@ -244,6 +279,14 @@ class LinearModel:
         """``(gains, loci)``: closed-loop poles of ``gain * (input -> output)`` under negative
         unity feedback, one row per gain (``control.root_locus_map``)."""
         import control
+        if gains is not None:
+            try:
+                gains = np.atleast_1d(np.asarray(gains, dtype=float))
+            except (TypeError, ValueError):
+                raise ValueError(f"root_locus: gains must be numbers, got {gains!r}") from None
+            if gains.ndim != 1 or gains.size == 0 or not np.all(np.isfinite(gains)):
+                raise ValueError(f"root_locus: gains must be a non-empty 1-D array of finite "
+                                 f"numbers, got {gains!r}")
         data = control.root_locus_map(self.siso(output, input), gains=gains)
         return np.asarray(data.gains), np.asarray(data.loci)
 
@@ -269,6 +312,42 @@ class LinearModel:
         sys = signal.StateSpace(self.A, self.B[:, j:j + 1], self.C[i:i + 1], self.D[i:i + 1, j:j + 1])
         _, yout, _ = signal.lsim(sys, np.full(len(t), amplitude), t)
         return np.asarray(yout).reshape(-1)
+
+
+def _dc_gain_singular(A, B, C, D, state_names):
+    """``(G(0), integrating state names)`` of a model whose ``A`` has eigenvalues at 0.
+
+    An ordered Schur form ``A = Q T Q^T`` puts the eigenvalues at 0 (``|lambda|`` within
+    rounding of ``||A||``) in the leading block ``T11``; a Sylvester equation decouples it
+    from the regular block ``T22``. The regular part gives the finite limit
+    ``D - C2 T22^-1 B2``; the nilpotent part adds ``sum_k C1 T11^(k-1) B1 / s^k``, infinite
+    wherever one of those coefficients is not negligible.
+    """
+    import scipy.linalg as sla
+    n = A.shape[0]
+    scale = max(np.linalg.norm(A, 1), np.finfo(float).tiny)
+    lam = np.linalg.eigvals(A)
+    tol = max(1e3 * np.finfo(float).eps * scale, np.min(np.abs(lam)) * (1.0 + 1e-6))
+    T, Q, k = sla.schur(A, output="real", sort=lambda re, im: math.hypot(re, im) <= tol)
+    k = max(int(k), 1)
+    T11, T12, T22 = T[:k, :k], T[:k, k:], T[k:, k:]
+    X = sla.solve_sylvester(T11, -T22, -T12) if k < n else np.zeros((k, 0))
+    Bt, Ct = Q.T @ B, C @ Q
+    B1, B2 = Bt[:k] - X @ Bt[k:], Bt[k:]          # the decoupled blocks
+    C1, C2 = Ct[:, :k], Ct[:, :k] @ X + Ct[:, k:]
+    G = D - C2 @ np.linalg.solve(T22, B2) if k < n else D.astype(float).copy()
+    size = np.abs(C).sum(axis=1)[:, None] * np.abs(B).sum(axis=0)[None, :]
+    lead = np.zeros_like(G)
+    power = np.eye(k)
+    for m in range(k):                   # keep the coefficient of the highest power of 1/s
+        term = C1 @ power @ B1
+        significant = np.abs(term) > 1e-9 * size * scale ** m
+        lead = np.where(significant, term, lead)
+        power = power @ T11
+    G = np.where(lead != 0.0, np.copysign(np.inf, lead), G)
+    weight = np.abs(Q[:, :k]).max(axis=1)
+    names = [state_names[i] for i in np.flatnonzero(weight >= 0.5 * weight.max())]
+    return G, names
 
 
 def _times(t, what) -> np.ndarray:
@@ -355,11 +434,39 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
     if op.system is not system and list(op.system.names) != list(system.names):
         raise PvgraphError(f"linearize: the operating point is one of {op.system.name!r}, "
                            f"whose unknowns differ from those of {system.name!r}")
-    outputs = [outputs] if isinstance(outputs, str) else list(outputs)
+    from ..simulate import _name_list
+    from .steady import _Scaled
+    if op.system is not system:
+        r = _Scaled(system, op.t, op.y).norm(op.y, op.yp)
+        if not r <= max(1e-6, 100.0 * op.residual_norm):
+            raise PvgraphError(f"linearize: the operating point is not a steady state of "
+                               f"{system.name!r} (scaled residual {r:.3g} there): it was found "
+                               f"for another system (other parameter values?); use "
+                               f"steady_state(system)")
+    outputs = _name_list(outputs, "linearize: outputs")
+    for what, arg in (("inputs", inputs), ("direct", direct)):
+        if arg is not None and not isinstance(arg, Mapping):
+            raise PvgraphError(f"linearize: {what} must be a mapping {{input name: array}}, "
+                               f"got {type(arg).__name__}")
     inputs = dict(inputs or {})
     direct = dict(direct or {})
+    for name, col in direct.items():
+        if name not in inputs:
+            raise PvgraphError(f"linearize: direct names {name!r}, which is not an input; the "
+                               f"inputs are {list(inputs)}")
+        try:
+            col = np.asarray(col, dtype=float)
+        except (TypeError, ValueError):
+            col = np.zeros(0)
+        if col.size != len(outputs) or not np.all(np.isfinite(col)):
+            raise PvgraphError(f"linearize: direct[{name!r}]: d outputs/du must be "
+                               f"{len(outputs)} finite numbers (one per output), got "
+                               f"{direct[name]!r}")
     for name, col in inputs.items():
-        col = np.asarray(col, dtype=float)
+        try:
+            col = np.asarray(col, dtype=float)
+        except (TypeError, ValueError):
+            col = np.zeros((0,))
         if col.size != system.n or not np.all(np.isfinite(col)):
             raise PvgraphError(f"linearize: input {name!r}: dF/du must be {system.n} finite "
                                f"numbers, got shape {col.shape}")
@@ -448,7 +555,8 @@ def linearize_circuit(build: Callable[[dict], object], u0: Mapping[str, float],
     """
     if not isinstance(u0, Mapping) or not u0:
         raise PvgraphError(f"u0: a non-empty mapping {{input name: value}}, got {u0!r}")
-    outputs = [outputs] if isinstance(outputs, str) else list(outputs)
+    from ..simulate import _name_list
+    outputs = _name_list(outputs, "linearize_circuit: outputs")
     if not outputs:
         raise PvgraphError("outputs: name at least one variable")
     if not (isinstance(eps_rel, (int, float)) and eps_rel > 0.0 and math.isfinite(eps_rel)):
@@ -470,4 +578,9 @@ def linearize_circuit(build: Callable[[dict], object], u0: Mapping[str, float],
     for nm in u0:
         cols[nm], direct[nm] = _input_derivatives(build, u0, nm, op, list(outputs), eps_rel,
                                                   du.get(nm))
+    unused = [nm for nm in u0 if not np.any(cols[nm]) and not np.any(direct[nm])]
+    if unused:
+        warnings.warn(f"linearize_circuit: input(s) {unused} change nothing in the circuit "
+                      f"(dF/du = 0): does build(u) read u[{unused[0]!r}]? The model's column "
+                      f"for it is zero", UserWarning, stacklevel=2)
     return linearize(system, op, cols, outputs, direct=direct)

@@ -6,7 +6,8 @@ is the hydraulic power it absorbs (negative for a pump or flow source delivering
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from collections.abc import Mapping
+from typing import Sequence
 
 import numpy as np
 
@@ -15,6 +16,9 @@ __all__ = ["hydraulic_ports", "hydraulic_power", "energy_balance"]
 
 def hydraulic_ports(result, component_path: str) -> list[str]:
     """Names of the hydraulic ports (with both ``p`` and ``q``) of a component."""
+    if not isinstance(component_path, str):
+        raise TypeError(f"a component is named by its path (str, e.g. 'orifice'), got "
+                        f"{component_path!r}")
     prefix = component_path + "."
     names = set(result.system.all_names())
     ports = sorted({nm[len(prefix):-2] for nm in names
@@ -22,7 +26,17 @@ def hydraulic_ports(result, component_path: str) -> list[str]:
                     and "." not in nm[len(prefix):-2]})
     ports = [pt for pt in ports if f"{prefix}{pt}.q" in names]
     if not ports:
-        raise KeyError(f"{component_path!r} has no hydraulic ports in this result")
+        import difflib
+        hydraulic = sorted({nm.rsplit(".", 2)[0] for nm in names
+                            if nm.endswith(".p") and nm.count(".") >= 2
+                            and nm[:-2] + ".q" in names})
+        if any(nm.startswith(prefix) for nm in names):
+            raise KeyError(f"{component_path!r} has no hydraulic ports in this result; the "
+                           f"components with hydraulic ports are {hydraulic}")
+        close = difflib.get_close_matches(component_path, hydraulic, n=3)
+        hint = f"; did you mean {', '.join(map(repr, close))}?" if close else \
+            f"; the components with hydraulic ports are {hydraulic}"
+        raise KeyError(f"no component {component_path!r} in this result{hint}")
     return ports
 
 
@@ -52,6 +66,21 @@ def energy_balance(solution, pump: str = "pump", *, losses: Sequence[str] = ("or
     Returns a dict of arrays ``t, P_pump, P_loss, E_stored, dE_dt, imbalance``
     (``imbalance = P_pump - P_loss - dE_dt``).
     """
+    from ..simulate import _name_list
+    losses = _name_list(losses, "energy_balance: losses")
+    if volumes is not None and not isinstance(volumes, Mapping):
+        raise TypeError(f"energy_balance: volumes must be a mapping {{path: (V [m^3], beta "
+                        f"[Pa])}}, got {volumes!r}")
+    for path, spec in (volumes or {}).items():
+        try:
+            if isinstance(spec, (str, bytes)):
+                raise TypeError
+            V, beta = (float(x) for x in spec)
+        except (TypeError, ValueError):
+            V = beta = float("nan")
+        if not (np.isfinite(V) and np.isfinite(beta) and V > 0.0 and beta > 0.0):
+            raise ValueError(f"energy_balance: volumes[{path!r}] must be (V [m^3], beta [Pa]), "
+                             f"both positive numbers, got {spec!r}")
     t = solution.t
     P_pump = -hydraulic_power(solution, pump)
     P_loss = sum((hydraulic_power(solution, c) for c in losses), np.zeros(len(t)))

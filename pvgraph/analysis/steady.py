@@ -23,7 +23,6 @@ the start point (the size of the row's terms), so the tolerance is relative.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -71,8 +70,9 @@ class OperatingPoint:
         ``F_p`` is the compiled parameter derivative dF/dp; one factorisation of F_y serves
         every parameter. ``params`` defaults to every runtime parameter of the system.
         """
+        from ..simulate import _name_list
         s = self.system
-        params = [params] if isinstance(params, str) else params
+        params = None if params is None else _name_list(params, "state_sensitivity: params")
         Fp = s.parameter_jacobian(self.t, self.y, self.yp, params)
         return self.solve_linear(-Fp)
 
@@ -115,9 +115,10 @@ class OperatingPoint:
         names (default: all). The steady state moves with the parameters: ``d out/dp =
         d out/dy dy/dp + d out/dp`` with ``dy/dp = -F_y^-1 F_p`` (:meth:`state_sensitivity`).
         """
+        from ..simulate import _name_list
         s = self.system
-        outputs = [outputs] if isinstance(outputs, str) else list(outputs)
-        params = [params] if isinstance(params, str) else params
+        outputs = _name_list(outputs, "sensitivity: outputs")
+        params = None if params is None else _name_list(params, "sensitivity: params")
         S = self.state_sensitivity(params) if dy_dp is None else dy_dp
         rows = []
         for name in outputs:
@@ -446,9 +447,9 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
                            f"{max_iter!r}")
     if not (isinstance(t, (int, float)) and math.isfinite(t)):
         raise PvgraphError(f"steady_state: t must be a finite time [s], got {t!r}")
-    if params is not None and not isinstance(params, Mapping):
-        raise PvgraphError(f"steady_state: params must be a mapping {{name: value}}, got "
-                           f"{type(params).__name__}")
+    if params is not None:
+        from ..circuit import parameter_values
+        params = parameter_values(params, "steady_state: params")
     if isinstance(system, Circuit):
         system = system.compile()
     if not isinstance(system, System):

@@ -261,6 +261,15 @@ class SweepResult:
         return iter(self.records)
 
     def __getitem__(self, index: int) -> CaseResult:
+        if isinstance(index, str):
+            raise TypeError(f"result[{index!r}]: a sweep result is indexed by case number; "
+                            f"use result.column({index!r}) for a parameter or output")
+        if isinstance(index, (bool, np.bool_)) or not isinstance(index, (numbers.Integral,
+                                                                        slice)):
+            raise TypeError(f"result[{index!r}]: give a case number (0 .. {len(self) - 1})")
+        if isinstance(index, numbers.Integral) and not -len(self) <= int(index) < len(self):
+            raise IndexError(f"case {int(index)} is out of range: the result holds "
+                             f"{len(self)} cases (0 .. {len(self) - 1})")
         return self.records[index]
 
     @property
@@ -746,6 +755,13 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
                              f"system); use backend='dask'")
     if resume and out is None:
         raise SweepError("resume=True needs out= (the folder holding cases.jsonl)")
+    if units is not None:
+        if not isinstance(units, Mapping):
+            raise SweepError(f"units must be a mapping {{output name: unit}}, e.g. "
+                             f"{{'q': 'm^3/s'}}, got {units!r}")
+        bad = {k: u for k, u in units.items() if not (isinstance(k, str) and isinstance(u, str))}
+        if bad:
+            raise SweepError(f"units: names and units are strings, got {bad!r}")
     param_names = list(cases[0])
     records: dict[int, CaseResult] = {}
     log_path = None if out is None else os.path.join(os.fspath(out), LOG_NAME)
@@ -775,6 +791,7 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
     def result(wall):
         res = SweepResult([records[i] for i in sorted(records)], param_names, backend=backend,
                           wall_time=wall, units=units, n_cases=len(cases))
+        _warn_unknown_units(res)
         if out is not None:
             res.save(out)
         return res
@@ -800,6 +817,21 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
     if log is not None:
         log.close()
     return result(time.perf_counter() - t0)
+
+
+def _warn_unknown_units(res: SweepResult) -> None:
+    """Warn about ``units`` entries that name neither a parameter nor an output."""
+    if not res.ok:
+        return
+    import warnings
+    known = res.param_names + res.output_names
+    for name in res.units:
+        if name not in known:
+            close = difflib.get_close_matches(name, known, n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            warnings.warn(f"sweep: units names {name!r}, which is neither a parameter nor an "
+                          f"output{hint} The columns are: {', '.join(known)}", UserWarning,
+                          stacklevel=3)
 
 
 def _check_values(check, cases, todo) -> None:
@@ -931,7 +963,11 @@ class CompiledRun:
                  steady: bool = False, rtol: float = 1e-6, tol: float = 1e-10,
                  reduce: Callable | None = None, warm: bool = False, key: str | None = None):
         import uuid
-        if (circuit is None) == (build is None):
+        if circuit is None and build is None:
+            raise SweepError("CompiledRun needs a circuit (case names are its parameters) or "
+                             "build= (case names are the builder's arguments); neither was "
+                             "given")
+        if circuit is not None and build is not None:
             raise SweepError("CompiledRun takes a circuit (case names are its parameters) or "
                              "build= (case names are the builder's arguments), not both")
         if build is not None and not callable(build):
@@ -940,8 +976,15 @@ class CompiledRun:
             raise SweepError("CompiledRun needs either t_end= (simulate) or steady=True")
         if t_end is not None and not (isinstance(t_end, numbers.Real) and t_end > 0):
             raise SweepError(f"t_end must be a positive time [s], got {t_end!r}")
-        outputs = dict(outputs) if isinstance(outputs, Mapping) else \
-            {str(n): str(n) for n in outputs}
+        if isinstance(outputs, Mapping):
+            outputs = dict(outputs)
+        else:
+            from ..simulate import _name_list
+            outputs = {n: n for n in _name_list(outputs, "CompiledRun: outputs")}
+        bad = {k: v for k, v in outputs.items() if not (isinstance(k, str) and isinstance(v, str))}
+        if bad:
+            raise SweepError(f"CompiledRun: outputs map labels to variable names (strings), "
+                             f"got {bad!r}")
         if not outputs and reduce is None:
             raise SweepError("CompiledRun needs outputs= (variable names) or reduce=")
         self.circuit, self.build, self.outputs = circuit, build, outputs
@@ -1083,12 +1126,22 @@ def grid(values: Mapping[str, Iterable]) -> list[dict]:
         if isinstance(vals, (str, bytes)) or not isinstance(vals, Iterable):
             raise SweepError(f"grid: the values of {name!r} must be a list (got "
                              f"{type(vals).__name__} {vals!r}); write [{vals!r}] for one value")
-        vals = [_plain(v) for v in vals]
+        vals = [_case_value("grid", name, _plain(v)) for v in vals]
         if not vals:
             raise SweepError(f"grid: parameter {name!r} has no values")
         axes[name] = vals
     names = list(axes)
     return [dict(zip(names, combo)) for combo in itertools.product(*axes.values())]
+
+
+def _case_value(where, name, v):
+    """``v`` if it is a usable case value: a finite number, a string or another scalar."""
+    if isinstance(v, numbers.Real) and not math.isfinite(v):
+        raise SweepError(f"{where}: {name!r} has the value {v!r}; case values must be finite")
+    if isinstance(v, (list, tuple, dict, set, frozenset, np.ndarray)):
+        raise SweepError(f"{where}: {name!r} has the value {v!r}; each case value must be a "
+                         f"single number or string, not a {type(v).__name__}")
+    return v
 
 
 def _range_spec(name, spec):
@@ -1147,7 +1200,15 @@ def random_sample(ranges: Mapping[str, Any], n: int, *, seed=None,
         raise SweepError(f"random_sample: unknown method {method!r}; choose one of "
                          f"{', '.join(SAMPLING_METHODS)}")
     specs = {name: _range_spec(name, spec) for name, spec in ranges.items()}
+    for name, spec in ranges.items():
+        if specs[name] is None:
+            _case_value("random_sample", name, _plain(spec))
     ranged = [name for name, s in specs.items() if s is not None]
+    if not (seed is None or isinstance(seed, (np.random.Generator, np.random.SeedSequence))
+            or (isinstance(seed, numbers.Integral) and not isinstance(seed, bool)
+                and seed >= 0)):
+        raise SweepError(f"random_sample: seed must be a non-negative integer or a numpy "
+                         f"Generator, got {seed!r}")
     rng = np.random.default_rng(seed)
     if not ranged:
         u = np.zeros((int(n), 0))

@@ -43,6 +43,19 @@ def test_misspelled_variable_fails_before_writing(tmp_path):
     assert not (tmp_path / "bad.png").exists()
 
 
+def test_empty_names_and_a_directory_as_path_are_named(tmp_path):
+    """plot_solution with no names or a directory for the file says so (matplotlib's
+    'Number of rows must be a positive integer' / IsADirectoryError before)."""
+    sol = simulate(_demo(), 0.05)
+    with pytest.raises(ValueError, match="plot_solution: names is empty"):
+        plot_solution(sol, [], tmp_path / "e.png")
+    with pytest.raises(IsADirectoryError, match="is a directory; give a file name in it"):
+        plot_solution(sol, ["node.port.p"], tmp_path)
+    with pytest.raises(TypeError, match="plot_solution: names: names are strings"):
+        plot_solution(sol, [1], tmp_path / "i.png")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_bode_step_and_circuit_drawings(tmp_path):
     f = np.logspace(-1, 2, 50)
     h = 1.0 / (1j * 2 * np.pi * f + 1.0)

@@ -99,6 +99,34 @@ def test_unknown_parameter_suggests_close_names():
         simulate(s, 1.0, params={"nothing.at_all": 1.0})
 
 
+def test_parameter_values_are_a_mapping_or_name_value_pairs_everywhere():
+    """with_params, Circuit.set_parameters, simulate and steady_state take a mapping or a list
+    of (name, value) pairs alike; one name, a list of names or None is refused by name (a
+    dict() ValueError or an AttributeError before), and recompile= must be a bool (any
+    truthy value meant True)."""
+    s = demo().compile()
+    by_pairs = s.with_params([("orifice.K", 2 * K)])
+    assert by_pairs.parameter_values["orifice.K"] == 2 * K
+    c = demo()
+    c.set_parameters([("orifice.K", 3 * K)])
+    assert c.compile().parameter_values["orifice.K"] == 3 * K
+    assert steady_state(s, params=[("orifice.K", 2 * K)], tol=1e-12)["node.port.p"] == \
+        pytest.approx(Q / (2 * K), rel=1e-9)
+    for bad in (["orifice.K"], "orifice.K=1e-10", [("orifice.K", 1.0, 2.0)]):
+        with pytest.raises(ParameterError, match="with_params values must be a mapping"):
+            s.with_params(bad)
+        with pytest.raises(ParameterError, match="set_parameters: values must be a mapping"):
+            c.set_parameters(bad)
+    with pytest.raises(ParameterError, match="set_parameters: values must be a mapping.*None"):
+        c.set_parameters(None)
+    with pytest.raises(ParameterError, match="check_parameters: values must be a mapping"):
+        c.check_parameters(["orifice.K"])
+    with pytest.raises(ParameterError, match="simulate: params must be a mapping"):
+        simulate(s, 1.0, params=["orifice.K"])
+    with pytest.raises(ParameterError, match=r"recompile=...\) takes True or False, got 'no'"):
+        s.with_params({"orifice.K": 2 * K}, recompile="no")
+
+
 def test_invalid_value_is_rejected_by_the_parameter_model():
     s = demo().compile()
     with pytest.raises(ParameterError, match="orifice"):

@@ -376,3 +376,18 @@ def test_start_value_of_an_algebraic_variable_not_kept_is_named():
     with warnings.catch_warnings():
         warnings.simplefilter("error", StartValueWarning)
         simulate(system, 1e-4, start={"node.port.p": "100 bar", "o1.b.p": 100e5 * 4 / 13})
+
+
+def test_solution_names_and_paths_of_the_wrong_kind(tmp_path):
+    """sol.der(0) and a nested list of names say what a name is; a directory as the CSV path
+    is named (it showed the internal temporary file name) and leaves nothing behind."""
+    sol = simulate(_charged_volume(), 0.05)
+    with pytest.raises(TypeError, match=r"sol.der\(\) takes a variable name"):
+        sol.der(1)
+    with pytest.raises(TypeError, match=r"to_csv: names: names are strings, got \['node"):
+        sol.to_csv(tmp_path / "x.csv", [["node.port.p"]])
+    with pytest.raises(IsADirectoryError, match="is a directory; give a file name in it"):
+        sol.to_csv(tmp_path, ["node.port.p"])
+    with pytest.raises(TypeError, match="path: a file name"):
+        sol.to_csv(None, ["node.port.p"])
+    assert list(tmp_path.iterdir()) == []

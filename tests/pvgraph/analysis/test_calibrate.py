@@ -202,8 +202,38 @@ def test_quantities_in_a_parameter_mapping_are_si_inside_and_shown_in_their_unit
     ({"cov_step": 0.0}, r"cov_step must lie in \(0, 1\)"),
     ({"diff_step": -1e-3}, r"diff_step must lie in \(0, 1\)"),
     ({"max_nfev": 0}, "max_nfev must be a positive integer"),
+    ({"sigma": [[1.0] * 8]}, r"one per measurement: shape \(8,\), got \(1, 8\)"),
+    ({"sigma": "x"}, "sigma must be numbers, got 'x'"),
+    ({"confidence": "0.9"}, r"confidence must lie in \(0, 1\), got '0.9'"),
+    ({"labels": "abcdefgh"}, "1 labels for 8 measurements"),
+    ({"parameters": ["a"]}, "parameters: give FitParameter objects or a mapping"),
+    ({"measured": "abc"}, "measured must be numbers, got 'abc'"),
+    ({"predict": lambda t: None}, "predict returned None; it must return 8 predictions"),
 ])
 def test_bad_numerical_options_are_named_before_the_fit(kwargs, match):
     x = np.linspace(0.0, 1.0, 8)
+    args = dict(predict=lambda t: t["a"] * x, measured=2.0 * x, parameters={"a": 1.0})
+    args.update(kwargs)
     with pytest.raises(CalibrationError, match=match):
-        calibrate(lambda t: t["a"] * x, 2.0 * x, {"a": 1.0}, **kwargs)
+        calibrate(**args)
+
+
+def test_fit_parameters_and_result_lookups_of_the_wrong_kind():
+    """FitParameter("a", "1") names the parameter; the result's interval and table refuse
+    unknown names and a non-mapping reference (AttributeError / silently ignored before),
+    while a reference holding more names than were fitted still works."""
+    with pytest.raises(CalibrationError, match="a: initial value '1' must be a number"):
+        FitParameter("a", "1")
+    x = np.linspace(0.0, 1.0, 8)
+    fit = calibrate(lambda t: t["a"] * x, 2.0 * x, {"a": 1.0})
+    assert fit["a"] == pytest.approx(2.0, rel=1e-6)
+    with pytest.raises(KeyError, match=r"no fitted parameter 'b'; fitted: \['a'\]"):
+        fit.interval("b")
+    with pytest.raises(CalibrationError, match="reference must be a mapping"):
+        fit.table("a")
+    with pytest.raises(KeyError, match="the reference names no fitted parameter"):
+        fit.table({"b": 1.0})
+    with pytest.raises(KeyError, match=r"\('aa' \(did you mean 'a'\?\)"):
+        fit.table({"aa": 1.0, "c": 2.0})
+    row = fit.table({"a": 2.0, "c": 3.0}).splitlines()[2].split()
+    assert row[0] == "a" and float(row[-1]) == 2.0

@@ -362,3 +362,94 @@ def test_the_sensitivity_to_a_structural_parameter_is_refused():
     assert op["node.port.p"] == pytest.approx(1e-4 / 1e-11, rel=1e-9)
     with pytest.raises(ParameterError, match="'lk.K' is structural"):
         op.sensitivity(["node.port.p"], ["lk.K"])
+
+
+def _lm(A, B, C):
+    A, B, C = (np.asarray(a, dtype=float) for a in (A, B, C))
+    return LinearModel(A, B, C, np.zeros((C.shape[0], B.shape[1])),
+                       [f"x{k}" for k in range(A.shape[0])],
+                       [f"u{k}" for k in range(B.shape[1])],
+                       [f"y{k}" for k in range(C.shape[0])])
+
+
+def test_dc_gain_of_an_integrator_is_infinite_on_its_paths_only():
+    """x0' = x1, x1' = -2 x1 + u0 (a damped body's position x0), x2' = -4 x2 + u1: y0 = x0
+    ramps for a step in u0 (G = 1/(s (s+2)) -> +inf), y1 = x1 settles at 1/2, and u1 -> y2
+    is 1/4; u1 does not reach x0, so that entry is 0. A warning names the integrator."""
+    lm = _lm([[0, 1, 0], [0, -2, 0], [0, 0, -4]], [[0, 0], [1, 0], [0, 1]], np.eye(3))
+    with pytest.warns(RuntimeWarning, match=r"pole at s = 0 \(an integrator in \['x0'\]\)"):
+        G = lm.dc_gain()
+    assert G[0, 0] == np.inf
+    np.testing.assert_allclose(G[1:, 0], [0.5, 0.0], atol=1e-12)
+    np.testing.assert_allclose(G[:, 1], [0.0, 0.0, 0.25], atol=1e-12)
+    with pytest.warns(RuntimeWarning):
+        assert _lm([[0.0]], [[-3.0]], [[1.0]]).dc_gain()[0, 0] == -np.inf
+    with pytest.warns(RuntimeWarning):        # a double integrator
+        assert _lm([[0, 1], [0, 0]], [[0], [1]], [[1, 0]]).dc_gain()[0, 0] == np.inf
+    # an integrator the input does not reach leaves a finite gain, without a warning
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        G = _lm([[0, 0], [0, -4]], [[0], [1]], np.eye(2)).dc_gain()
+    np.testing.assert_allclose(G.ravel(), [0.0, 0.25], atol=1e-12)
+
+
+def test_more_bad_arguments_to_linear_models_are_named():
+    """A float index, bad root-locus gains, a model without inputs and non-mapping or
+    misnamed dF/du and direct terms are refused by name (numpy or python-control errors)."""
+    lm = _model(__import__("control").tf([1.0], [1.0, 3.0, 2.0]))
+    with pytest.raises(TypeError, match=r"output 1.0: give a name or an integer index"):
+        lm.frequency_response([1.0], output=1.0)
+    with pytest.raises(ValueError, match="root_locus: gains must be a non-empty"):
+        lm.root_locus(gains=[])
+    with pytest.raises(ValueError, match="root_locus: gains must be numbers, got 'x'"):
+        lm.root_locus(gains="x")
+    no_inputs = LinearModel(lm.A, lm.B[:, :0], lm.C, lm.D[:, :0], lm.state_names, [], ["y"])
+    with pytest.raises(PvgraphError, match="to_control: the model has 0 inputs"):
+        no_inputs.to_control()
+
+    from pvgraph.analysis import linearize, steady_state
+    system = _demo_circuit(1e-4).compile()
+    op = steady_state(system)
+    n = system.n
+    with pytest.raises(PvgraphError, match="inputs must be a mapping"):
+        linearize(system, op, ["Q"], ["node.port.p"])
+    with pytest.raises(PvgraphError, match="direct names 'QQ', which is not an input"):
+        linearize(system, op, {"Q": np.ones(n)}, ["node.port.p"], direct={"QQ": [1.0]})
+    with pytest.raises(PvgraphError, match=r"direct\['Q'\]: d outputs/du must be 1 finite"):
+        linearize(system, op, {"Q": np.ones(n)}, ["node.port.p"], direct={"Q": [1.0, 2.0]})
+    with pytest.raises(TypeError, match="outputs: names are strings"):
+        linearize(system, op, {"Q": np.ones(n)}, [["node.port.p"]])
+    with pytest.raises(TypeError, match="sensitivity: outputs: names are strings"):
+        op.sensitivity([["node.port.p"]], ["orifice.A"])
+    with pytest.raises(TypeError, match="linearize_circuit: outputs: names are strings, got 1"):
+        linearize_circuit(lambda u: _demo_circuit(u["pump.Q"]), {"pump.Q": 1e-4}, [1])
+
+
+def test_an_operating_point_of_another_system_is_refused():
+    """The steady state at Q = 1e-4 is not one at Q = 1.6e-4 (same unknowns, other values):
+    linearising there gave a model of no steady state, silently."""
+    from pvgraph.analysis import linearize, steady_state
+    op = steady_state(_demo_circuit(1e-4).compile())
+    other = _demo_circuit(1.6e-4).compile()
+    with pytest.raises(PvgraphError, match="not a steady state of 'demo'"):
+        linearize(other, op, {}, ["node.port.p"])
+    same = _demo_circuit(1e-4).compile()      # another compile of the same circuit is fine
+    assert linearize(same, op, {}, ["node.port.p"]).A.shape == (1, 1)
+
+
+def test_a_model_without_inputs_and_unknown_step_info_options_are_named():
+    lm = _model(__import__("control").tf([1.0], [1.0, 3.0, 2.0]))
+    no_inputs = LinearModel(lm.A, lm.B[:, :0], lm.C, lm.D[:, :0], lm.state_names, [], ["y"])
+    with pytest.raises(IndexError, match="the model has no inputs"):
+        no_inputs.step_info()
+    with pytest.raises(TypeError, match=r"step_info: unknown option\(s\) \['bogus'\]"):
+        lm.step_info(bogus=1)
+
+
+def test_an_input_the_builder_ignores_is_warned_about():
+    """u0 = {"Q": ..., "Zzz": ...} with a builder that never reads "Zzz" gave a zero column
+    without a word; the model is still returned (B for Q is beta/V)."""
+    with pytest.warns(UserWarning, match=r"input\(s\) \['Zzz'\] change nothing"):
+        lm = linearize_circuit(lambda u: laminar(u), {"Q": Q, "Zzz": 1.0}, ["node.port.p"])
+    assert lm.B[0, 0] == pytest.approx(BETA / V, rel=1e-9) and lm.B[0, 1] == 0.0

@@ -35,3 +35,23 @@ def test_energy_balance_closes():
     assert work == pytest.approx(eb["E_stored"][-1] - eb["E_stored"][0], rel=1e-4)
     # at the end almost all delivered power is dissipated (steady state p = Q/K)
     assert eb["P_loss"][-1] == pytest.approx(Q * Q / K, rel=0.05)
+
+
+def test_misnamed_components_and_volumes_are_named():
+    """A misspelt component gets close matches, one loss name as a string is one name (it was
+    read letter by letter), and a volume without (V, beta) is named."""
+    tau = V / (BETA * K)
+    t = np.linspace(0, 4 * tau, 101)
+    sol = simulate(demo(), 4 * tau, rtol=1e-8, t_eval=t)
+    with pytest.raises(KeyError, match="no component 'orifce' in this result; did you mean "
+                                       "'orifice'"):
+        hydraulic_power(sol, "orifce")
+    with pytest.raises(TypeError, match="a component is named by its path"):
+        hydraulic_power(sol, 3)
+    one = energy_balance(sol, "pump", losses="orifice", volumes={"node": (V, BETA)})
+    listed = energy_balance(sol, "pump", losses=["orifice"], volumes={"node": (V, BETA)})
+    np.testing.assert_array_equal(one["P_loss"], listed["P_loss"])
+    assert one["P_loss"][-1] == pytest.approx(Q * Q / K, rel=0.05)
+    for bad in (1, "12", (V, -BETA)):
+        with pytest.raises(ValueError, match=r"volumes\['node'\] must be \(V \[m\^3\], beta"):
+            energy_balance(sol, "pump", volumes={"node": bad})

@@ -259,3 +259,31 @@ def test_latin_hypercube_puts_one_sample_in_each_bin():
 def test_random_sample_rejects_bad_specs(spec, n, method, match):
     with pytest.raises(SweepError, match=match):
         random_sample(spec, n, method=method)
+
+
+def test_case_values_seeds_units_and_result_indexes_of_the_wrong_kind():
+    """NaN and list case values, a string seed, units as a list and a name as a result index
+    are refused by name (they were kept silently or gave numpy/list errors); units naming
+    no column warn."""
+    with pytest.raises(SweepError, match="grid: 'A' has the value nan; case values must be "
+                                         "finite"):
+        grid({"A": [float("nan"), 1.0]})
+    with pytest.raises(SweepError, match=r"grid: 'A' has the value \[1, 2\]; each case value "
+                                         "must be a single number or string"):
+        grid({"A": [[1, 2]]})
+    with pytest.raises(SweepError, match="random_sample: 'A' has the value nan"):
+        random_sample({"A": float("nan"), "B": (0.0, 1.0)}, 3)
+    with pytest.raises(SweepError, match="seed must be a non-negative integer"):
+        random_sample({"A": (0.0, 1.0)}, 3, seed="x")
+
+    def twice(x):
+        return {"y": 2.0 * x}
+    with pytest.raises(SweepError, match=r"units must be a mapping \{output name: unit\}"):
+        sweep(twice, grid({"x": [1.0]}), backend="serial", units=["m"])
+    with pytest.warns(UserWarning, match="units names 'yy'.*did you mean 'y'"):
+        result = sweep(twice, grid({"x": [1.0, 2.0]}), backend="serial", units={"yy": "m"})
+    assert result[1].outputs == {"y": 4.0} and result[-1] is result[1]
+    with pytest.raises(TypeError, match=r"use result.column\('x'\)"):
+        result["x"]
+    with pytest.raises(IndexError, match=r"case 5 is out of range: the result holds 2 cases"):
+        result[5]

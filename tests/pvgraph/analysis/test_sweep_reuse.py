@@ -142,3 +142,13 @@ def test_reuse_compiled_gives_the_built_circuits_values_and_compiles_new_structu
         assert op["orifice.q"] == pytest.approx(-1e-4, rel=1e-9)
     orifice_bench().compile()                   # outside the block: compiled as usual
     assert _REUSE["compilations"] - n0 == 3
+
+
+def test_compiled_run_without_a_circuit_or_with_one_output_name():
+    """Neither circuit nor build is named as such (the message said "not both"); one output
+    name as a string is one output (it was read letter by letter)."""
+    with pytest.raises(SweepError, match="neither was given"):
+        CompiledRun(outputs=["node.port.p"], steady=True)
+    run = CompiledRun(orifice_bench, outputs="node.port.p", steady=True, tol=1e-12)
+    p = run(**{"orifice.A": 2e-6})["node.port.p"]
+    assert p == pytest.approx(analytic({}, Q=1e-4, A=2e-6), rel=1e-8)
