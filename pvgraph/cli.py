@@ -758,6 +758,23 @@ def _figure_path(text: str) -> str:
         raise argparse.ArgumentTypeError(
             f"{text!r}: the figure format comes from the extension; use one of "
             f"{', '.join(FIGURE_SUFFIXES)}")
+    return _output_path(text)
+
+
+def _output_path(text: str) -> str:
+    """argparse type of an output file: a file name whose directory exists or can be made,
+    checked before anything runs (missing directories are made when the file is written)."""
+    path = os.path.abspath(text)
+    if not text or os.path.isdir(path):
+        raise argparse.ArgumentTypeError(f"{text!r} is a directory; give a file name")
+    parent = os.path.dirname(path)
+    while not os.path.exists(parent):
+        parent = os.path.dirname(parent)
+    if not os.path.isdir(parent):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: cannot make a directory there, {parent!r} is a file")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"{text!r}: the directory {parent!r} is not writable")
     return text
 
 
@@ -823,7 +840,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="relative tolerance (default: %(default)s)")
     s.add_argument("--var", action="append", help="variable to report (repeatable; names: "
                                                   "pvgraph vars TARGET)")
-    s.add_argument("--csv", help="write the variables over time to this CSV file (SI)")
+    s.add_argument("--csv", type=_output_path, help="write the variables over time to this CSV file (SI)")
     s.add_argument("--plot", type=_figure_path,
                    help="plot the variables to this PNG, SVG or PDF file")
     s.add_argument("--si", action="store_true", help="print SI units (default: bar, L/min, mm)")
@@ -838,7 +855,7 @@ def build_parser() -> argparse.ArgumentParser:
     g = parsers["graph"] = sub.add_parser(
         "graph", help="draw a circuit as a layered schematic (PNG, SVG or Graphviz DOT)")
     _add_target(g)
-    g.add_argument("--out", default="circuit.png", help="output file (default: %(default)s)")
+    g.add_argument("--out", default="circuit.png", type=_output_path, help="output file (default: %(default)s)")
     g.add_argument("--format", choices=["png", "svg", "dot"],
                    help="default: from the extension of --out")
     g.set_defaults(func=cmd_graph)
@@ -846,7 +863,7 @@ def build_parser() -> argparse.ArgumentParser:
     e = parsers["export"] = sub.add_parser(
         "export", help="save a circuit as a model file (.toml, .json) or an FMU (.fmu)")
     _add_target(e)
-    e.add_argument("--out", required=True, help="FILE.toml, FILE.json or FILE.fmu")
+    e.add_argument("--out", required=True, type=_output_path, help="FILE.toml, FILE.json or FILE.fmu")
     e.add_argument("--var", action="append", help="FMU output variable (repeatable)")
     e.add_argument("--input", action="append", metavar="PARAM",
                    help="FMU input: a component.field parameter set between steps (repeatable)")
@@ -888,7 +905,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="output variable (repeatable)")
     lz.add_argument("--poles", type=int, default=6, help="dominant poles to print "
                                                          "(default: %(default)s)")
-    lz.add_argument("--json", help="write operating point, poles and DC gains to this file")
+    lz.add_argument("--json", type=_output_path, help="write operating point, poles and DC gains to this file")
     lz.add_argument("--bode", metavar="PNG", type=_figure_path, help="draw the Bode plot of every output to this "
                                                   "PNG file")
     lz.add_argument("--si", action="store_true", help="print SI units")
@@ -953,6 +970,9 @@ def _run(args, argv) -> int:
     except PvgraphError as exc:
         print(f"pvgraph {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:          # an output file that could not be written after all
+        print(f"pvgraph {args.command}: error: {exc.strerror or exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"pvgraph {args.command}: interrupted", file=sys.stderr)
         return 130

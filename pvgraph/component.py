@@ -528,7 +528,9 @@ class Component:
             raise CircuitError(_unknown_port_message(self, name, type(self).ports)) from None
 
     def __getattr__(self, name):
-        if name.startswith("_"):
+        # reached for a missing attribute only: a private one, or a property whose getter
+        # failed (a component whose parameters were refused has no name or parameters yet)
+        if name.startswith("_") or isinstance(getattr(type(self), name, None), property):
             raise AttributeError(name)
         ports = type(self).ports
         if name in ports:
@@ -572,7 +574,10 @@ class Component:
         return [E.as_expr(r) for r in residuals], v
 
     def __repr__(self):
-        return f"<{type(self).__name__} {self.path}>"
+        try:
+            return f"<{type(self).__name__} {self.path}>"
+        except AttributeError:      # refused in __init__: no name yet
+            return f"<{type(self).__name__} (not built)>"
 
 
 def _unknown_port_message(owner, name, ports) -> str:

@@ -28,7 +28,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from . import expr as E
-from .errors import PvgraphError
+from .errors import PvgraphError, StructureError
 
 __all__ = ["compile_dae", "LIB"]
 
@@ -104,6 +104,17 @@ def compile_dae(residual, y0, yp0=None, *, names=None, name: str = "dae",
     infos = {nm: VarInfo(nm, "", float(y0[i]), float(nominal[i]), "", name, 2)
              for i, nm in enumerate(names)}
     equations = [_Equation(E.as_expr(r), name, f"{name} row {i}") for i, r in enumerate(rows)]
-    system = build_system(name, equations, infos, {}, {}, [], [], [], array_rows=False)
+    try:
+        system = build_system(name, equations, infos, {}, {}, [], [], [], array_rows=False)
+    except StructureError as exc:
+        text = str(exc)
+        if ". Typical causes:" not in text:
+            raise
+        raise StructureError(
+            text.split(". Typical causes:")[0] + ". compile_dae takes DAEs of "
+            "index one (each algebraic equation solvable for the algebraic unknowns); index "
+            "reduction is done for circuits only. Differentiate the constraint until it "
+            "determines the unknowns left (a pendulum's x^2 + y^2 = L^2 twice: the "
+            "acceleration-level form), or build the model as a circuit.") from None
     system.yp0 = yp0.copy()
     return system.use_backend(backend)

@@ -169,8 +169,11 @@ def _atomic_write(path, write):
         raise IsADirectoryError(f"{path!r} is a directory; give a file name in it "
                                 f"(e.g. {os.path.join(path, 'result.csv')!r})")
     folder = os.path.dirname(os.path.abspath(path))
-    os.makedirs(folder, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=os.path.basename(path))
+    try:
+        os.makedirs(folder, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=os.path.basename(path))
+    except OSError as exc:      # named by the file asked for, not the temporary one
+        raise type(exc)(exc.errno, f"cannot write {path!r}: {exc.strerror}", path) from None
     umask = os.umask(0o22)
     os.umask(umask)
     try:

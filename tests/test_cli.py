@@ -325,9 +325,13 @@ def test_misspelled_var_fails_before_simulating(rig_file, tmp_path, capsys):
     (["--rtol", "nan"], "argument --rtol: 'nan': a relative tolerance"),
     (["--rtol", "abc"], "argument --rtol: 'abc' is not a number"),
     (["--plot", "{dir}/out.xyz"], "the figure format comes from the extension; use one of .png"),
+    (["--csv", "{dir}/afile/x.csv"], "cannot make a directory there, "),
+    (["--plot", "{dir}/afile/sub/x.png"], "is a file"),
+    (["--csv", "{dir}"], "is a directory; give a file name"),
 ])
 def test_bad_options_exit_2_before_anything_runs(args, message, rig_file, tmp_path, capsys):
     csv = tmp_path / "never.csv"
+    (tmp_path / "afile").write_text("a file where a directory is expected")
     with pytest.raises(SystemExit) as exc:       # argparse's own exit, before the target loads
         main(["simulate", f"{rig_file}:build", "--csv", str(csv)]
              + [a.format(dir=tmp_path) for a in args])

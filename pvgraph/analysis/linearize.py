@@ -41,7 +41,7 @@ from typing import Callable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from ..errors import PvgraphError
+from ..errors import ParameterError, PvgraphError
 from ..system import System
 from .steady import OperatingPoint, steady_state
 
@@ -520,24 +520,45 @@ def input_sensitivity(build: Callable[[dict], object], u0: Mapping[str, float], 
 
 def _input_derivatives(build, u0, name, op, outputs, eps_rel=1e-5, du=None):
     """``(dF/du, d outputs/du at fixed unknowns)`` of input ``name`` by central differences
-    of rebuilt systems at ``op``."""
+    of rebuilt systems at ``op``; at a bound of the input (a damping of 0, which the component
+    refuses below) by one-sided second-order differences into the allowed side."""
     u0 = dict(u0)
     h = du if du is not None else eps_rel * (abs(u0[name]) if u0[name] != 0.0 else 1.0)
-    cols, outs = [], []
-    for sign in (1.0, -1.0):
+
+    def at(step):
         u = dict(u0)
-        u[name] = u0[name] + sign * h
+        u[name] = u0[name] + step
         s = _as_system(build(u))
         if s.names != op.system.names:
             raise PvgraphError(f"changing input {name!r} changed the unknowns of the compiled "
                                f"system; linearise a build whose structure does not depend on it")
-        cols.append(s.residual(op.t, op.y, op.yp))
         values = []
         for out in outputs:
             coef, idx, off = s.resolve(out)
             values.append(off + (0.0 if idx is None else coef * op.y[idx]))
-        outs.append(np.array(values, dtype=float))
-    return (cols[0] - cols[1]) / (2.0 * h), (outs[0] - outs[1]) / (2.0 * h)
+        return s.residual(op.t, op.y, op.yp), np.array(values, dtype=float)
+
+    refused = {}
+    for sign in (1.0, -1.0):
+        try:
+            refused[sign] = at(sign * h)
+        except ParameterError as exc:
+            refused[sign] = exc
+    up, down = refused[1.0], refused[-1.0]
+    if not isinstance(up, Exception) and not isinstance(down, Exception):
+        return (up[0] - down[0]) / (2.0 * h), (up[1] - down[1]) / (2.0 * h)
+    if isinstance(up, Exception) and isinstance(down, Exception):
+        raise PvgraphError(f"input {name!r} = {u0[name]!r}: neither {name} + {h:g} nor "
+                           f"{name} - {h:g} is a valid value ({up}); give du={{{name!r}: "
+                           f"...}} a step the component accepts") from None
+    # one-sided: f'(u) = (-3 f(u) + 4 f(u + s) - f(u + 2 s)) / (2 s), s = +h or -h
+    sign = 1.0 if not isinstance(up, Exception) else -1.0
+    one = up if sign > 0 else down
+    two = at(2.0 * sign * h)
+    zero = at(0.0)
+    step = sign * h
+    return ((-3.0 * zero[0] + 4.0 * one[0] - two[0]) / (2.0 * step),
+            (-3.0 * zero[1] + 4.0 * one[1] - two[1]) / (2.0 * step))
 
 
 def _as_system(target):

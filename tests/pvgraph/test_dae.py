@@ -113,3 +113,20 @@ def test_bad_residuals_are_named():
         return [yp[0] + y[0], y[0] - 1.0]
     with pytest.raises(StructureError, match="y1"):
         compile_dae(singular, [1.0, 0.0])
+
+
+def test_an_index_three_pendulum_is_refused_with_advice_for_a_dae():
+    """x' = u, y' = v, u' = -lam x, v' = -lam y - g, 0 = x^2 + y^2 - 1: the multiplier lam
+    appears in no algebraic equation (index three). The refusal names the row and lam and
+    tells a DAE's author what to do, not a circuit's."""
+    def residual(t, y, yp, lib):
+        x, yy, u, v, lam = y[0], y[1], y[2], y[3], y[4]
+        return [yp[0] - u, yp[1] - v, yp[2] + lam * x, yp[3] + lam * yy + 9.81,
+                x * x + yy * yy - 1.0]
+    with pytest.raises(StructureError) as info:
+        compile_dae(residual, [1.0, 0.0, 0.0, 0.0, 0.0])
+    msg = str(info.value)
+    assert "dae row 4" in msg
+    assert "Unknowns left without an equation: y4" in msg
+    assert "index one" in msg and "acceleration-level" in msg
+    assert "VolumeNode" not in msg

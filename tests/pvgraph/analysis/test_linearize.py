@@ -453,3 +453,36 @@ def test_an_input_the_builder_ignores_is_warned_about():
     with pytest.warns(UserWarning, match=r"input\(s\) \['Zzz'\] change nothing"):
         lm = linearize_circuit(lambda u: laminar(u), {"Q": Q, "Zzz": 1.0}, ["node.port.p"])
     assert lm.B[0, 0] == pytest.approx(BETA / V, rel=1e-9) and lm.B[0, 1] == 0.0
+
+
+def test_an_input_at_its_lower_bound_is_differenced_one_sided():
+    """A cylinder's piston leakage K at its bound 0 (the component refuses K < 0): the model
+    is taken from one side, and its DC gain dp/dK is the slope of two independent steady
+    states, p(K = 0) and p(K = dK). Pump -> node -> orifice -> tank, the cylinder's cap side
+    on the node, its rod side at the tank, the rod held by a spring."""
+    from pvgraph.analysis import steady_state
+    from pvgraph.components import Cylinder, Mass, Orifice
+
+    def build(u):
+        c = Circuit("leaky")
+        pump = c.add("pump", FlowSource(Q="10 L/min"))
+        node = c.add("node", VolumeNode(V="0.2 L"))
+        orifice = c.add("orifice", Orifice(A="2 mm^2"))
+        tank = c.add("tank", Tank())
+        cyl = c.add("cyl", Cylinder(A_A="20 cm^2", A_rod="10 cm^2", stroke=0.5,
+                                    V_dead_A=1e-4, V_dead_B=1e-4, K_leak=u["cyl.K_leak"]))
+        mass = c.add("mass", Mass(m=10.0, b=2000.0, x0=0.1))
+        spring = c.add("spring", LinearSpring(k=1e6))
+        c.connect(pump.port, node.port, orifice.a, cyl.A)
+        c.connect(orifice.b, tank.port, cyl.B)
+        c.connect(cyl.flange, mass.flange, spring.flange)
+        return c
+
+    model = linearize_circuit(build, {"cyl.K_leak": 0.0}, ["node.port.p"],
+                              du={"cyl.K_leak": 1e-15})
+    dK = 1e-16
+    p0 = steady_state(build({"cyl.K_leak": 0.0}).compile())["node.port.p"]
+    p1 = steady_state(build({"cyl.K_leak": dK}).compile())["node.port.p"]
+    slope = (p1 - p0) / dK
+    assert slope < 0.0
+    assert model.dc_gain()[0, 0] == pytest.approx(slope, rel=1e-3)
