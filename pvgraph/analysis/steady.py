@@ -42,6 +42,8 @@ class OperatingPoint:
     tied to them); ``info["cyclic"]`` names one pivot angle per drift direction (held at its
     start value; sensitivities hold it fixed) and ``info["drift"]`` gives each direction as
     ``{name: coefficient}`` with 1 at its pivot (``yp = coefficient * yp[pivot]``).
+    ``info["undetermined"]`` names the unknowns no steady equation reads (a free mass's
+    position, a rod at rest): they keep their start values, and any other value is as steady.
     """
 
     y: np.ndarray
@@ -489,8 +491,26 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
         info["cyclic"] = [system.names[j] for j in cyc]
         info["drift"] = [{system.names[i]: float(G[i, k]) for i in np.flatnonzero(G[:, k])}
                          for k in range(len(cyc))]
+    free = _undetermined(system, t, y1, yp1, cyc)
+    if free:
+        info["undetermined"] = free
     _check_pressures(system, y1)
     return OperatingPoint(y1, yp1, system, t, fn, total, method, info)
+
+
+def _undetermined(system, t, y, yp, cyclic) -> list[str]:
+    """The unknowns no steady equation reads (a column of dF/dy that is zero at the operating
+    point): a free mass's position, a rod at rest whose chambers' volumes only matter while
+    the pressures change. They keep their start values; any other value is as steady."""
+    J = _jacobian(system, t, y, yp, 0.0)
+    if sp.issparse(J):
+        J = sp.csc_matrix(J)
+        J.data = np.where(np.isfinite(J.data), J.data, 1.0)
+        used = np.asarray(abs(J).max(axis=0).todense()).ravel() > 0.0
+    else:
+        used = np.any(np.abs(np.nan_to_num(J, nan=1.0)) > 0.0, axis=0)
+    skip = set(int(j) for j in cyclic)
+    return [system.names[j] for j in np.flatnonzero(~used) if int(j) not in skip]
 
 
 def _check_pressures(system, y):

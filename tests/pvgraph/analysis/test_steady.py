@@ -130,3 +130,22 @@ def test_bad_options_of_steady_state_are_named(kwargs, match):
     c.connect(orifice.b, tank.port)
     with pytest.raises(PvgraphError, match=match):
         steady_state(c.compile(), **kwargs)
+
+
+def test_unknowns_no_steady_equation_reads_are_named():
+    """A free 10 kg mass at rest: v = 0 is steady at every x, so x keeps its start value and
+    the operating point says it is undetermined; a mass on a spring is determined."""
+    from pvgraph.components import Free, LinearSpring, Mass
+    c = Circuit("free")
+    mass = c.add("m", Mass(m=10.0, x0=0.3))
+    free = c.add("free", Free())
+    c.connect(mass.flange, free.flange)
+    op = steady_state(c.compile())
+    assert op["m.flange.x"] == 0.3 and op["m.v"] == 0.0
+    assert op.info["undetermined"] == ["m.flange.x"]
+    c = Circuit("sprung")
+    mass = c.add("m", Mass(m=10.0, x0=0.3))
+    spring = c.add("k", LinearSpring(k=100.0, F0=5.0))
+    c.connect(mass.flange, spring.flange)
+    op = steady_state(c.compile())
+    assert "undetermined" not in op.info
