@@ -599,6 +599,7 @@ def _islands(circuit: Circuit, known: dict) -> list[dict]:
     bases: list = []            # ... and the number of its first port
     seen: dict = {}   # (class, parameter values) -> the ports' roles, for instances alike
     shared: dict = {}  # class -> [instances traced, instances that took another's roles]
+    hyd_leaves: list = []   # (path, component) of each leaf with hydraulic ports
     for path, comp in leaves:
         cls = type(comp)
         hyd = hyd_of.get(cls)
@@ -623,6 +624,7 @@ def _islands(circuit: Circuit, known: dict) -> list[dict]:
                                 [at[n] for n in vols], [at[n] for n in coupled])
         kinds.append(got[0])
         bases.append(base)
+        hyd_leaves.append((path, comp))
     ea, eb = [], []
 
     def walk(node):
@@ -670,6 +672,15 @@ def _islands(circuit: Circuit, known: dict) -> list[dict]:
         apart = np.ones(len(nets), dtype=bool) if nets.shape[1] == 1 else \
             np.any(nets != nets[:, :1], axis=1)
         has_ref[nets[apart].ravel()] = True
+        # all in one network: the load feels the common pressure where the areas differ
+        # (a differential cylinder in regeneration), not where they cancel (a motor's loop)
+        if not apart.all():
+            which = np.flatnonzero(kinds_a == k)
+            names = [hyd_of[type(hyd_leaves[which[0]][1])][c] for c in coupled]
+            for r in np.flatnonzero(~apart):
+                path, comp = hyd_leaves[which[r]]
+                if _feels_level(comp, path, names):
+                    has_ref[nets[r]] = True
     loose = np.flatnonzero(~has_ref[label])         # the ports of those networks
     loose = loose[np.argsort(label[loose], kind="stable")]
     cuts = np.flatnonzero(np.diff(label[loose])) + 1
@@ -679,6 +690,43 @@ def _islands(circuit: Circuit, known: dict) -> list[dict]:
         out.append({"components": {ports[k][0] for k in members},
                     "volumes": {ports[k] for k in members if vol[k]}, "ref": False})
     return out
+
+
+def _feels_level(comp, path, ports) -> bool:
+    """True if the equations of ``comp`` that read a mechanical port change with the common
+    pressure of its hydraulic ``ports`` (every other variable at 0): the areas on a piston
+    differ. False where they cancel, or where that cannot be told."""
+    import numpy as np
+
+    from . import expr as E
+    from ._templates import _value
+    from .component import HYDRAULIC, SIGNAL
+    try:
+        residuals, _ = comp.trace(path)
+    except Exception:
+        return False
+    mech = tuple(f"{path}.{n}." for n, pt in comp.ports.items()
+                 if pt.domain is not HYDRAULIC and pt.domain is not SIGNAL)
+    rows = [r for r in residuals if any(nm.startswith(mech) for _, nm in _symbols_read(r))]
+    pressures = {f"{path}.{n}.p" for n in ports}
+    head = len(path) + 1
+
+    class Values:
+        def __init__(self, level):
+            self.level = level
+
+        def __getitem__(self, name):
+            return float(_value(comp.params, name[head:]))
+
+        def leaf(self, node):
+            return self.level if node.value in pressures else 0.0
+    try:
+        low = np.array([E.evaluate(r, Values(1e5)) for r in rows], dtype=float)
+        high = np.array([E.evaluate(r, Values(2e5)) for r in rows], dtype=float)
+    except Exception:
+        return False
+    change = np.abs(high - low)
+    return bool(np.all(np.isfinite(change)) and np.any(change > 1e-9 * (np.abs(low) + 1e5)))
 
 
 def _shared_roles(comp, path, hyd, seen, shared):
