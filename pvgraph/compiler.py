@@ -544,6 +544,8 @@ def _connection_equations(root, leaves, infos, keys=None) -> list[_Equation]:
 def _note_shorted(ports, shorted):
     """Add to ``shorted`` each component with two or more (non-signal) ports among the
     ``(label, component, port, leaf)`` of one connection set."""
+    if len({id(a[1]) for a in ports}) == len(ports):     # the common case: all distinct
+        return
     seen: dict[int, tuple] = {}
     for label, comp, pname, _ in ports:
         if type(comp).ports[pname].domain is not SIGNAL:
