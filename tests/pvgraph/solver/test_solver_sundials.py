@@ -49,3 +49,28 @@ def test_sundials_backend_events_and_actions():
     np.testing.assert_allclose(ida.t_events, ours.t_events, atol=1e-6)
     assert [e.name for e in ida.events] == ["ground", "ground"]
     np.testing.assert_allclose(ida.y[-1], ours.y[-1], atol=1e-5)
+
+
+def test_sundials_backend_evaluates_events_of_one_vector_function_in_one_call():
+    """Forty level crossings of y' = 1, given as entries of one vector function (as a compiled
+    system gives its events): IDA's root function calls it once per evaluation, not once per
+    event, and every crossing is found at its closed-form time y = level."""
+    pytest.importorskip("sksundae")
+    levels = 0.025 * np.arange(1, 41)
+    calls = {"all": 0, "one": 0}
+
+    def g_all(t, y, yp):
+        calls["all"] += 1
+        return y[0] - levels
+
+    def entry(k):
+        def g(t, y, yp):
+            calls["one"] += 1
+            return g_all(t, y, yp)[k]
+        g.vector = (g_all, k)
+        return g
+    events = [Event(entry(k), direction=1, name=f"level{k}") for k in range(len(levels))]
+    res = solve_dae_sundials(lambda t, y, yp: yp - 1.0, (0.0, 1.5), [0.0], [1.0],
+                             events=events, rtol=1e-10, atol=1e-12, algebraic=None)
+    np.testing.assert_allclose(res.t_events, levels, atol=1e-8)
+    assert calls["one"] == 0 and calls["all"] > 0
