@@ -31,6 +31,7 @@ alias elimination, each volume contributes its own flow unknown, and the DAE sta
 from __future__ import annotations
 
 import gc
+import re
 import warnings
 import itertools
 import zlib
@@ -502,6 +503,19 @@ def _connection_equations(root, leaves, infos, keys=None) -> list[_Equation]:
                 keys.extend(_connection_key(eq.expr) for eq in signal)
             continue
         if len(ports) == 1:
+            comp = ports[0][1]
+            alone = [pn for pn in type(comp).ports
+                     if sum(attrs[j][3] for j in members[find(index[(id(comp), pn)])]) == 1]
+            closure = _CLOSURE.get(domain.name, "")
+            if not exposed and len(alone) == len(type(comp).ports) and \
+                    re.search(rf"\b{type(comp).__name__}\b", closure):
+                # a closure itself (a Tank, a Plug) left over: closing it is no advice
+                path = labels[0].rsplit(".", 1)[0]
+                raise CircuitError(
+                    f"component {path!r} ({type(comp).__name__}) is connected to nothing: "
+                    f"connect port{'s' if len(alone) > 1 else ''} "
+                    f"{', '.join(repr(f'{path}.{pn}') for pn in alone)} or remove the "
+                    f"component from the circuit.")
             via = f" (exposed as {', '.join(exposed)}, but not connected outside)" if exposed \
                 else ""
             raise CircuitError(

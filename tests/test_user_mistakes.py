@@ -585,3 +585,13 @@ def test_an_orifice_bridged_by_a_port_connected_twice_is_named():
     with warnings.catch_warnings():
         warnings.simplefilter("error", PlausibilityWarning)
         _demo().compile()
+
+
+def test_a_tank_connected_to_nothing_is_named_as_left_over():
+    """A second Tank added and never connected: closing it "with a Plug or a Tank" would be no
+    advice; the component is named as connected to nothing."""
+    c = _demo()
+    c.add("t2", Tank())
+    with pytest.raises(CircuitError, match=r"component 't2' \(Tank\) is connected to nothing: "
+                                           r"connect port 't2.port' or remove the component"):
+        c.compile()
