@@ -12,7 +12,8 @@ from typing import Iterable
 import numpy as np
 
 from .circuit import Circuit
-from .errors import PlausibilityWarning, PvgraphError, StartValueWarning, outside_stacklevel
+from .errors import (InitializationError, PlausibilityWarning, PvgraphError, StartValueWarning,
+                     outside_stacklevel)
 from .system import System
 
 __all__ = ["simulate", "Solution"]
@@ -310,11 +311,24 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
                   events=system._run_events() or None, t_eval=t_eval, max_step=max_step,
                   calc_initial=calc_initial, var_names=system.names, **options)
     if solver == "pvgraph":
-        from .solver import solve_dae
-        res = solve_dae(system.residual, (t_start, t_end), y_init, yp_init, **kwargs)
+        from .solver import solve_dae as solve
     else:
-        from .solver import solve_dae_sundials
-        res = solve_dae_sundials(system.residual, (t_start, t_end), y_init, yp_init, **kwargs)
+        from .solver import solve_dae_sundials as solve
+    try:
+        res = solve(system.residual, (t_start, t_end), y_init, yp_init, **kwargs)
+    except InitializationError as exc:
+        start = _algebraic_start(system, exc, y_init, t_start, calc_initial)
+        try:
+            if start is None:
+                raise exc
+            res = solve(system.residual, (t_start, t_end), start, yp_init, **kwargs)
+        except InitializationError:
+            if "did not converge" not in str(exc):
+                raise exc from None
+            raise InitializationError(
+                f"{exc} A valve fed by a flow source with no volume on its node starts closed, "
+                f"where its opening law is flat: put a VolumeNode on that node, or give its "
+                f"pressure a start value above the opening pressure.") from None
     if not res.success:
         raise PvgraphError(f"{system.name}: simulation stopped early: {res.message}")
     sol = Solution(system, res.t, res.y, res.yp, events=res.events, stats=res.stats,
@@ -322,6 +336,29 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     _check_starts_kept(sol, given)
     _check_pressures(sol)
     return sol
+
+
+def _algebraic_start(system, exc, y, t0, calc_initial):
+    """Better first guesses of the algebraic unknowns after the consistent start failed, or
+    None: their values at a steady state from ``y`` (the states kept). Newton from a valve
+    closed at its start (a pump straight into a relief or check valve, no volume on the node:
+    the opening law is flat there) stalls; the steady solver's line search and continuation
+    reach the open valve, and the consistent start converges from there."""
+    if calc_initial != "algebraic" or "consistent initialisation at t" not in str(exc):
+        return None
+    alg = np.asarray(system.algebraic, dtype=bool)
+    if not alg.any():
+        return None
+    from .analysis.steady import steady_state
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            op = steady_state(system, y0=y, t=t0, tol=1e-6)   # a first guess only
+    except PvgraphError:
+        return None
+    start = np.array(y, dtype=float)
+    start[alg] = op.y[alg]
+    return start
 
 
 def _check_starts_kept(sol, given) -> None:
