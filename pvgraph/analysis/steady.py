@@ -470,6 +470,18 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
     y1, fn, its, ok = _newton(sc, y.copy(), tol, max_iter)
     method = "newton"
     total = its
+    if not ok and np.isfinite(fn):
+        # the rows were scaled by their slopes at the start, which can be far smaller than
+        # at the answer (a valve closed at the start: its flow's slope is its leakage's):
+        # scaled again where Newton stopped, a residual at rounding level is seen as such
+        sc_here = _Scaled(problem, t, y1)
+        if sc_here.norm(y1) <= tol:
+            sc, fn, ok = sc_here, sc_here.norm(y1), True
+        else:
+            y2, fn2, its2, ok2 = _newton(sc_here, y1.copy(), tol, max_iter)
+            total += its2
+            if ok2:
+                sc, y1, fn, ok = sc_here, y2, fn2, True
     if not ok and continuation:
         y2, steps = _continuation(sc, y.copy(), tol)
         y1, fn, its, ok = _newton(sc, y2, tol, max_iter)
