@@ -317,14 +317,16 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     try:
         res = solve(system.residual, (t_start, t_end), y_init, yp_init, **kwargs)
     except InitializationError as exc:
+        res = None
         start = _algebraic_start(system, exc, y_init, t_start, calc_initial)
-        try:
-            if start is None:
-                raise exc
-            res = solve(system.residual, (t_start, t_end), start, yp_init, **kwargs)
-        except InitializationError:
+        if start is not None:
+            try:
+                res = solve(system.residual, (t_start, t_end), start, yp_init, **kwargs)
+            except InitializationError:
+                pass
+        if res is None:
             if "did not converge" not in str(exc):
-                raise exc from None
+                raise
             raise InitializationError(
                 f"{exc} A valve fed by a flow source with no volume on its node starts closed, "
                 f"where its opening law is flat: put a VolumeNode on that node, or give its "

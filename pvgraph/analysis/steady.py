@@ -475,8 +475,9 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
         # at the answer (a valve closed at the start: its flow's slope is its leakage's):
         # scaled again where Newton stopped, a residual at rounding level is seen as such
         sc_here = _Scaled(problem, t, y1)
-        if sc_here.norm(y1) <= tol:
-            sc, fn, ok = sc_here, sc_here.norm(y1), True
+        fn_here = sc_here.norm(y1)
+        if fn_here <= tol:
+            sc, fn, ok = sc_here, fn_here, True
         else:
             y2, fn2, its2, ok2 = _newton(sc_here, y1.copy(), tol, max_iter)
             total += its2

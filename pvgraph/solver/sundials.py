@@ -45,7 +45,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from pvgraph.errors import InitializationError, SolverError
-from pvgraph.solver.events import (_shared_vector, atol_vector, check_times, normalize_events,
+from pvgraph.solver.events import (EventTracker, atol_vector, check_times, normalize_events,
                                    stopping_event)
 from pvgraph.solver.ida import dominant_names, initial_step
 from pvgraph.solver.initial import start_values
@@ -203,16 +203,10 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
             JJ[:, :] = m.toarray() if sp.issparse(m) else m
         options["jacfn"] = jacfn
     if event_list:
-        shared = _shared_vector(event_list)
-        if shared is not None:      # every event in one call of the system's event function
-            g_all, idx = shared
+        tracker = EventTracker(event_list)   # one call for all events of one system
 
-            def eventsfn(t, yy, ypp, out):
-                out[:] = np.asarray(g_all(t, yy, ypp), dtype=float)[idx]
-        else:
-            def eventsfn(t, yy, ypp, out):
-                for i, ev in enumerate(event_list):
-                    out[i] = ev.fun(t, yy, ypp)
+        def eventsfn(t, yy, ypp, out):
+            out[:] = tracker.evaluate(t, yy, ypp)
         eventsfn.terminal = [False] * len(event_list)
         eventsfn.direction = [int(ev.direction) for ev in event_list]
         options.update(eventsfn=eventsfn, num_events=len(event_list))
