@@ -1,7 +1,7 @@
 """Hydraulic components."""
 
 from .accumulator import GasAccumulator
-from .check_valve import CheckValve
+from .check_valve import CheckValve, PilotOperatedCheckValve
 from .cylinder import Cylinder
 from .directional_valves import (DirectionalValve22, DirectionalValve32, DirectionalValve42,
                                  DirectionalValve43, ServoValve)
@@ -22,6 +22,7 @@ from .volumes import PistonChamber, VolumeNode
 __all__ = ["Fluid", "MINERAL_OIL", "CavitationWarning",
            "Tank", "PressureSource", "PressureInput", "FlowSource", "FlowInput", "Pump", "Plug",
            "Orifice", "LaminarOrifice", "VariableOrifice", "CheckValve",
+           "PilotOperatedCheckValve",
            "ReliefValve", "DynamicReliefValve", "PilotReliefValve", "PressureReducingValve",
            "SequenceValve", "CounterbalanceValve", "ShuttleValve", "FlowControlValve",
            "DirectionalValve43", "DirectionalValve42", "DirectionalValve32", "DirectionalValve22",

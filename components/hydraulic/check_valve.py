@@ -13,6 +13,19 @@ flow; above ``p_crack + dp_open`` the full area does. The smoothstep ramp has ze
 ends, so the area is continuously differentiable in dp. The PVE check balls (report 4.5.1,
 4.5.3) are rectified orifices of A_checkvalve = 2.3 mm^2 (seat 1.7 mm) from the lower cavity to
 the end chambers: ``CheckValve(A=mm2(2.3))`` with the default ``p_crack = 0``.
+
+``PilotOperatedCheckValve`` adds a pilot port ``x`` that pushes the poppet off its seat, so the
+valve also passes flow back from ``b`` to ``a`` (lowering a load it holds). The poppet sees the
+control pressure (the usual definition of Simscape Fluids' and Hopsan's pilot-operated check
+valves)::
+
+    p_control = a.p - b.p + k_p * x.p          k_p = pilot area / seat area
+    s = clip((p_control - p_crack) / dp_open, 0, 1),   A = A_leak + (A - A_leak)(3 s^2 - 2 s^3)
+    q = Cd * A * sqrt(2/rho) * dp / (dp^2 + dp_t^2)^(1/4)      dp = a.p - b.p, either sign
+    a.q = q,  b.q = -q,  x.q = 0
+
+With the pilot at tank pressure it is a check valve; holding a load at ``b.p`` it opens when
+``x.p > (b.p - a.p + p_crack) / k_p``.
 """
 
 from __future__ import annotations
@@ -78,3 +91,32 @@ class CheckValve(Component):
                       "flow from a to b")
         v.observe("P_loss", q * dp, "W", "hydraulic power dissipated")
         return [v.a.q - q, v.a.q + v.b.q]
+
+
+class PilotOperatedCheckValveParams(CheckValveParams):
+    k_p: float = Field(3.0, gt=0.0, le=100.0,
+                       description="Pilot ratio: pilot piston area / seat area [-] (typically "
+                                   "3-10)")
+
+
+class PilotOperatedCheckValve(Component):
+    """Check valve a -> b that a pilot pressure at ``x`` opens in both directions.
+
+    Opening law on ``p_control = a.p - b.p + k_p * x.p`` (module docstring); the pilot port takes
+    no flow.
+    """
+
+    Params = PilotOperatedCheckValveParams
+    ports = {"a": Hydraulic("inlet (free flow a -> b)"),
+             "b": Hydraulic("outlet, load side (held against flow back to a)"),
+             "x": Hydraulic("pilot; no flow")}
+
+    def equations(self, v, p):
+        dp = v.observe("dp", v.a.p - v.b.p, "Pa", "pressure drop a - b")
+        p_ctrl = v.observe("p_control", dp + p.k_p * v.x.p, "Pa",
+                           "control pressure a.p - b.p + k_p x.p")
+        A = v.observe("A", p.area(p_ctrl), "m^2", "opening area")
+        q = v.observe("q", orifice_flow(p.Cd, A, dp, p.rho, p.dp_t), "m^3/s",
+                      "flow from a to b")
+        v.observe("P_loss", q * dp, "W", "hydraulic power dissipated")
+        return [v.a.q - q, v.a.q + v.b.q, v.x.q]

@@ -14,12 +14,12 @@ from .rotational import (AngleSensor, Inertia, RotationalDamper, RotationalFixed
                          SpeedInput, SpeedSensor, SpeedSource, TorqueInput, TorqueSensor,
                          TorqueSource)
 from .sensors import ForceSensor, PositionSensor, VelocitySensor
-from .transmissions import Lever, RackPinion
+from .transmissions import Gear, Lever, RackPinion
 from .springs import CenteringSpring, LinearSpring, TwoFlangeSpring, TwoStageSpring
 
 __all__ = ["SpoolMass", "Mass", "Fixed", "Free", "LinearSpring", "TwoFlangeSpring", "TwoStageSpring",
            "CenteringSpring", "Friction", "Damper", "TwoFlangeDamper", "EndStop", "ForceInput",
-           "PositionInput", "PositionSensor", "VelocitySensor", "ForceSensor", "RackPinion", "Lever",
+           "PositionInput", "PositionSensor", "VelocitySensor", "ForceSensor", "RackPinion", "Lever", "Gear",
            "Inertia", "ShaftSpringDamper", "RotationalDamper", "TorqueSource", "TorqueInput",
            "SpeedSource", "SpeedInput", "RotationalFixed", "RotationalFree", "SpeedSensor", "AngleSensor",
            "TorqueSensor", "MAIN_SPOOL_MASS", "LEVER_EQUIVALENT_MASS"]

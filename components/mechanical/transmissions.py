@@ -1,5 +1,5 @@
-"""Transmissions between translation and rotation (rack and pinion) and between two
-translations (lever).
+"""Transmissions between translation and rotation (rack and pinion), between two translations
+(lever) and between two shafts (gear).
 
 ``RackPinion``: ports ``flange`` (the rack, x [m], f [N]) and ``shaft`` (the pinion, phi [rad],
 tau [N m]), pinion radius ``r``. Ideal (``k`` None), it is the holonomic constraint and the
@@ -17,17 +17,27 @@ carry inertia (an ideal constraint between two inertias is a DAE of index two)::
 
     b.x = i * a.x,   a.f = -i * b.f          (ideal)
     F = k (b.x - i a.x) + d der(b.x - i a.x),   b.f = F,   a.f = -i F   (compliant)
+
+``Gear``: shafts ``a`` (input) and ``b`` (output), ratio ``i = w_a / w_b`` (Modelica's
+``IdealGear`` convention: i > 1 reduces the speed and multiplies the torque), efficiency ``eta``
+for the power flowing from a to b::
+
+    a.phi = i * b.phi,   b.tau = -i * eta * a.tau      (ideal teeth; eta = 1 conserves power)
+    T = k (a.phi - i b.phi) + d der(a.phi - i b.phi),   a.tau = T,   b.tau = -i eta T  (compliant)
+
+The efficiency is a constant torque ratio, right while power flows from a to b; it is the
+simple gearbox model of a drive sized at one operating point, not a direction-dependent loss.
 """
 
 from __future__ import annotations
 
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from pvgraph.component import Component, Mechanical, Params, der
 
 from .rotational import Rotational
 
-__all__ = ["RackPinion", "Lever"]
+__all__ = ["RackPinion", "Lever", "Gear"]
 
 
 class RackPinionParams(Params):
@@ -70,3 +80,37 @@ class Lever(Component):
         gap = v.b.x - p.i * v.a.x
         F = v.observe("F", p.k * gap + p.d * der(gap), "N", "force at b")
         return [v.b.f - F, v.a.f + p.i * F]
+
+
+class GearParams(Params):
+    i: float = Field(..., ge=-1000.0, le=1000.0,
+                     description="Ratio w_a / w_b [-] (i > 1: b turns slower with more torque); "
+                                 "negative reverses the direction")
+    eta: float = Field(1.0, gt=0.0, le=1.0,
+                       description="Efficiency for power flowing from a to b [-]")
+    k: float | None = Field(None, gt=0.0, le=1e12,
+                            description="Torsional mesh stiffness at a [N m/rad]; None: ideal, "
+                                        "rigid teeth")
+    d: float = Field(0.0, ge=0.0, le=1e9, description="Mesh damping at a [N m s/rad] (with k)")
+
+    @field_validator("i")
+    @classmethod
+    def _nonzero(cls, value):
+        if value == 0.0:
+            raise ValueError("the ratio i must not be 0 (b could not turn)")
+        return value
+
+
+class Gear(Component):
+    """Gearbox between two shafts: ``a.phi = i b.phi``, ``b.tau = -i eta a.tau`` (module
+    docstring)."""
+
+    Params = GearParams
+    ports = {"a": Rotational("input shaft"), "b": Rotational("output shaft")}
+
+    def equations(self, v, p):
+        if p.k is None:
+            return [v.a.phi - p.i * v.b.phi, v.b.tau + p.i * p.eta * v.a.tau]
+        twist = v.a.phi - p.i * v.b.phi
+        T = v.observe("T", p.k * twist + p.d * der(twist), "N m", "mesh torque at a")
+        return [v.a.tau - T, v.b.tau + p.i * p.eta * T]

@@ -4,10 +4,10 @@ Signal ports carry one value ``u``/``y`` and are causal: an output (``SignalOut`
 number of inputs (``SignalIn``).
 """
 
-from .blocks import FirstOrderLag, Gain, Saturation, Sum, Sum3
+from .blocks import PID, FirstOrderLag, Gain, Integrator, Product, Saturation, Sum, Sum3
 from .lvdt import LVDT
 from .pve_controller import PVEController
 from .sources import Constant, Ramp, Sine, Step, TimeTable
 
 __all__ = ["Constant", "Step", "Ramp", "TimeTable", "Sine", "Gain", "Sum", "Sum3", "Saturation",
-           "FirstOrderLag", "LVDT", "PVEController"]
+           "FirstOrderLag", "Product", "Integrator", "PID", "LVDT", "PVEController"]

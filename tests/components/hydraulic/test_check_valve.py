@@ -118,3 +118,71 @@ def test_reverse_pressure_is_held():
     assert sol.final("dut.q") == pytest.approx(-leak, rel=1e-3)
     assert sol.final("vol.port.p") == pytest.approx(p0 - BETA * leak / V * 1.0, rel=1e-6)
     assert sol.final("vol.port.p") > 0.999 * p0
+
+
+# --- pilot-operated check valve -------------------------------------------------------------
+
+def _pocv_q(p_a, p_b, p_x, **kw):
+    from pvgraph.components.hydraulic import PilotOperatedCheckValve
+    valve = PilotOperatedCheckValve(**{"A": mm2(10), "k_p": 3.0, **kw})
+    return fixed_observed(valve, ["q"], a=Pressure(p_a), b=Pressure(p_b), x=Pressure(p_x))[0]
+
+
+def test_pilot_operated_check_valve_holds_until_the_pilot_opens_it():
+    """Load at b: 100 bar, a at tank, k_p = 3: p_control = -100 bar + 3 p_x opens over
+    [0, 0.1 bar], at p_x = 33.33-33.37 bar."""
+    full_back = orifice_flow(0.6, mm2(10), -bar(100), RHO, 1e3)
+    leak = orifice_flow(0.6, 1e-12, -bar(100), RHO, 1e3)
+    assert _pocv_q(0.0, bar(100), bar(33.0)) == pytest.approx(leak, rel=1e-6)   # holds
+    assert _pocv_q(0.0, bar(100), bar(40.0)) == pytest.approx(full_back, rel=1e-12)
+    assert full_back < 0.0
+    # free flow a -> b with no pilot, as the plain check valve
+    assert _pocv_q(bar(5), 0.0, 0.0) == pytest.approx(q_at(bar(5)) * 10 / 2.3, rel=1e-9)
+    # the opening is monotone in the pilot pressure
+    qs = [-_pocv_q(0.0, bar(100), bar(px)) for px in np.linspace(33.0, 33.5, 26)]
+    assert np.all(np.diff(qs) >= 0.0)
+
+
+@requires_solver
+def test_pilot_operated_check_valve_lowers_a_held_load_at_the_orifice_rate():
+    """A 2000 kg mass on a 20 cm^2 piston (98.1 bar) held by the valve. A 30 bar pilot keeps
+    holding it (p_control = 0 - 98.1 + 3 x 30 < 0); 40 bar lets it down at the speed where
+    the orifice flow fills the piston's swept volume, v A = q(p) with p A = m g - b |v|."""
+    from scipy.optimize import brentq
+
+    from pvgraph.components.hydraulic import Cylinder, PilotOperatedCheckValve, PressureSource
+    from pvgraph.components.mechanical import Mass
+    m, g, A_p, b = 2000.0, 9.81, 20e-4, 1e5
+    p_load = m * g / A_p
+    speeds = {}
+    for p_x in (bar(30), bar(40)):
+        c = Circuit("pocv")
+        cyl = c.add("cyl", Cylinder(A_A=A_p, A_rod=10e-4, stroke=1.0, V_dead_A=1e-4,
+                                    V_dead_B=1e-4, p0_A=p_load))
+        c.add("mass", Mass(m=m, g=-g, b=b, x0=0.5))
+        c.connect("cyl.flange", "mass.flange")
+        v = c.add("pocv", PilotOperatedCheckValve(A=mm2(2), k_p=3.0))
+        c.connect(v.b, cyl.A)
+        c.connect(v.a, c.add("tank", Tank()).port)
+        c.connect(v.x, c.add("pilot", PressureSource(p0=p_x)).port)
+        c.connect(cyl.B, c.add("tank_b", Tank()).port)
+        sol = simulate(c, 1.0, rtol=1e-8, t_eval=np.linspace(0.6, 1.0, 5))
+        speeds[p_x] = sol["mass.v"]
+        pressures = sol["cyl.A.p"]
+    np.testing.assert_allclose(pressures[0], pressures, rtol=1e-6)
+    # held: it creeps down at the closed poppet's leakage, A_leak = 1e-12 m^2
+    leak = orifice_flow(0.6, 1e-12, -p_load, RHO, 1e3)
+    np.testing.assert_allclose(speeds[bar(30)], leak / A_p, rtol=1e-3)
+
+    def gap(v):     # v < 0: the load goes down, friction b|v| carries part of it
+        p = (m * g + b * v) / A_p
+        return v * A_p - orifice_flow(0.6, mm2(2), -p, RHO, 1e3)
+    v_closed = brentq(gap, -1.0, -1e-9, xtol=1e-14)
+    np.testing.assert_allclose(speeds[bar(40)], v_closed, rtol=1e-6)
+    np.testing.assert_allclose(pressures, (m * g + b * v_closed) / A_p, rtol=1e-6)
+
+
+def test_pilot_operated_check_valve_bad_pilot_ratio_is_named():
+    from pvgraph.components.hydraulic import PilotOperatedCheckValve
+    with pytest.raises(ParameterError, match="k_p"):
+        PilotOperatedCheckValve(A=mm2(2), k_p=0.0)

@@ -163,3 +163,56 @@ def test_hydraulic_sensors_and_jacobians():
     assert jacobian_fd_error(c.compile()) < 1e-6
     with pytest.raises(ParameterError, match="J"):
         Inertia(J=0.0)
+
+
+@requires_solver
+@pytest.mark.parametrize("i, eta", [(4.0, 1.0), (4.0, 0.9), (-2.5, 0.95)])
+def test_gear_between_two_inertias_reflects_the_inertia(i, eta):
+    """Torque T on J_a, gear i = w_a/w_b, J_b on the output: J_a a + tau_a = T,
+    J_b a / i = i eta tau_a, so a = T / (J_a + J_b / (i^2 eta)), w_b = w_a / i (two inertias
+    joined rigidly: index two, reduced by the compiler)."""
+    from pvgraph.components.mechanical import Gear
+    J_a, J_b, T = 0.01, 0.5, 2.0
+    c = Circuit("gear")
+    c.add("ja", Inertia(J=J_a))
+    c.add("jb", Inertia(J=J_b))
+    c.add("drive", TorqueSource(T=T))
+    c.add("g", Gear(i=i, eta=eta))
+    c.connect("drive.shaft", "ja.shaft", "g.a")
+    c.connect("g.b", "jb.shaft")
+    t = np.array([0.1, 0.5, 1.0])
+    sol = simulate(c, 1.0, rtol=1e-9, t_eval=t)
+    alpha = T / (J_a + J_b / (i * i * eta))
+    np.testing.assert_allclose(sol["ja.w"], alpha * t, rtol=1e-8)
+    np.testing.assert_allclose(sol["jb.w"], alpha * t / i, rtol=1e-8)
+    # power into b is eta times the power through a
+    p_a = sol["g.a.tau"] * sol["ja.w"]
+    p_b = -sol["g.b.tau"] * sol["jb.w"]
+    np.testing.assert_allclose(p_b, eta * p_a, rtol=1e-8)
+
+
+@requires_solver
+def test_compliant_gear_oscillates_at_the_reflected_frequency():
+    """Gear mesh stiffness k at a, J_a free, J_b on b: with T = k (phi_a - i phi_b),
+    J_a phi_a'' = -T and J_b phi_b'' = i T, so the twist oscillates at
+    w_n = sqrt(k (1/J_a + i^2/J_b)) and J_a w_a + J_b w_b / i is conserved."""
+    from pvgraph.components.mechanical import Gear
+    J_a, J_b, i, k = 0.02, 0.8, 3.0, 500.0
+    c = Circuit("gear")
+    c.add("ja", Inertia(J=J_a, w0=10.0))
+    c.add("jb", Inertia(J=J_b))
+    c.add("g", Gear(i=i, k=k))
+    c.connect("ja.shaft", "g.a")
+    c.connect("g.b", "jb.shaft")
+    t = np.linspace(0.0, 0.5, 101)
+    sol = simulate(c, 0.5, rtol=1e-10, atol=1e-10, t_eval=t)
+    wn = math.sqrt(k * (1 / J_a + i * i / J_b))
+    rel = sol["ja.w"] - sol["jb.w"] * i
+    np.testing.assert_allclose(rel, 10.0 * np.cos(wn * t), atol=1e-5)
+    np.testing.assert_allclose(J_a * sol["ja.w"] + J_b * sol["jb.w"] / i, J_a * 10.0, rtol=1e-7)
+
+
+def test_gear_ratio_zero_is_refused_by_name():
+    from pvgraph.components.mechanical import Gear
+    with pytest.raises(ParameterError, match="i"):
+        Gear(i=0.0)
