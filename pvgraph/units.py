@@ -1,8 +1,10 @@
 """Unit helpers for the edges of the model (presets, examples, CLI).
 
 Inside pvgraph everything is SI. These helpers convert the units hydraulic engineers quote:
-``bar(13.5)`` -> Pa, ``lpm(16.3)`` -> m^3/s, ``mm(7)`` -> m, ``mm2(3.5)`` -> m^2, ``cm3(8)`` -> m^3.
-Each has an inverse ``to_bar``, ``to_lpm``, ``to_mm``, ... for reporting.
+``bar(13.5)`` -> Pa, ``lpm(16.3)`` -> m^3/s, ``mm(7)`` -> m, ``mm2(3.5)`` -> m^2, ``cm3(8)`` -> m^3,
+``cm(5)`` -> m, ``cm2(20)`` -> m^2, ``rpm(1500)`` -> rad/s, ``cm3_per_rev(28)`` -> m^3/rad (a
+displacement). ``to_bar``, ``to_lpm``, ``to_mm``, ``to_mm2`` and ``to_rpm`` convert back for
+reporting.
 
 Quantities with units are accepted wherever a parameter is given: ``to_unit("150 bar", "Pa")``
 is 1.5e7, ``to_unit("10 L/min", "m^3/s")`` 1.67e-4, and a pint Quantity converts the same way.
@@ -71,6 +73,31 @@ def to_mm2(value):
 def cm3(value):
     """Volume in cm^3 -> m^3."""
     return value * CM3
+
+
+def cm(value):
+    """Length in cm -> m."""
+    return value * 1e-2
+
+
+def cm2(value):
+    """Area in cm^2 -> m^2."""
+    return value * 1e-4
+
+
+def rpm(value):
+    """Shaft speed in rev/min -> rad/s."""
+    return value * (2.0 * math.pi / 60.0)
+
+
+def to_rpm(value):
+    """Shaft speed in rad/s -> rev/min."""
+    return value / (2.0 * math.pi / 60.0)
+
+
+def cm3_per_rev(value):
+    """Displacement in cm^3/rev -> m^3/rad."""
+    return value * CM3 / (2.0 * math.pi)
 
 
 def litre(value):

@@ -425,3 +425,32 @@ def test_blocked_cylinder_oscillates_with_the_period_and_amplitude_of_the_spring
     t_up = sol.t[up] - x[up] * (sol.t[up + 1] - sol.t[up]) / (x[up + 1] - x[up])
     assert np.diff(t_up) == pytest.approx(period, rel=1e-4)
     assert np.abs(x).max() == pytest.approx(1e-3 / w, rel=1e-3)
+
+
+def test_position_servo_with_a_pi_controller_settles_on_its_set_point():
+    """A servo valve, a cylinder on a damped mass, a position sensor and a PI controller with
+    its output limited to the full spool stroke: the integral leaves no steady error, so the
+    steady state puts the rod at the set point, 200 mm, and a run settles there."""
+    from pvgraph.components import PID, PositionSensor, PressureSource, ServoValve, Step
+    from pvgraph.units import cm2
+    c = Circuit("servo")
+    sv = c.add("sv", ServoValve(Q_nom="20 L/min"))
+    c.connect(c.add("ps", PressureSource(p0="150 bar")).port, sv.P)
+    c.connect(c.add("t", Tank()).port, sv.T)
+    cyl = c.add("cyl", Cylinder(A_A=cm2(20), A_rod=cm2(10), stroke=0.5, V_dead_A=1e-5,
+                                V_dead_B=1e-5))
+    c.connect(sv.A, cyl.A)
+    c.connect(sv.B, cyl.B)
+    c.add("m", Mass(m=100.0, b=2000.0))
+    pos = c.add("pos", PositionSensor())
+    c.connect(cyl.flange, "m.flange", pos.flange)
+    pid = c.add("pid", PID(Kp=20.0, Ki=5.0, y_min=-1.0, y_max=1.0))
+    c.connect(c.add("ref", Step(height=0.2)).y, pid.r)
+    c.connect(pos.y, pid.m)
+    c.connect(pid.y, sv.i)
+    op = steady_state(c.compile())
+    assert op["m.flange.x"] == pytest.approx(0.2, abs=1e-12)
+    assert op["cyl.B.p"] == pytest.approx(2.0 * op["cyl.A.p"], rel=1e-9)  # p_A A_A = p_B A_B
+    sol = simulate(c, 20.0, rtol=1e-8, t_eval=[0.5, 20.0])
+    assert sol["pid.y"].max() <= 1.0 + 1e-7
+    assert sol["m.flange.x"][-1] == pytest.approx(0.2, abs=1e-4)

@@ -173,3 +173,13 @@ def test_viscosities_and_tonnes_as_datasheets_write_them(given, unit, expected):
 ])
 def test_us_customary_and_data_sheet_spellings(text, unit, want):
     assert to_unit(text, unit, "x") == pytest.approx(want, rel=1e-13)
+
+
+def test_the_helpers_agree_with_the_quantity_strings():
+    from pvgraph.units import cm, cm2, cm3_per_rev, rpm, to_rpm
+    assert cm(5) == pytest.approx(to_unit("5 cm", "m"), rel=1e-15)
+    assert cm2(20) == pytest.approx(to_unit("20 cm^2", "m^2"), rel=1e-15)
+    assert rpm(1500) == pytest.approx(to_unit("1500 rpm", "rad/s"), rel=1e-15)
+    assert to_rpm(rpm(1500)) == pytest.approx(1500.0, rel=1e-15)
+    assert cm3_per_rev(28) == pytest.approx(to_unit("28 cm^3/rev", "m^3/rad"), rel=1e-15)
+    assert cm3_per_rev(28) == pytest.approx(28e-6 / (2 * math.pi), rel=1e-15)
