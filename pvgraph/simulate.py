@@ -326,6 +326,9 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
                 pass
         if res is None:
             if "did not converge" not in str(exc):
+                hint = _massless_hint(system) if "singular" in str(exc) else ""
+                if hint:
+                    raise InitializationError(f"{exc} {hint}") from None
                 raise
             raise InitializationError(
                 f"{exc} A valve fed by a flow source with no volume on its node starts closed, "
@@ -338,6 +341,41 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     _check_starts_kept(sol, given)
     _check_pressures(sol)
     return sol
+
+
+def _massless_hint(system) -> str:
+    """A sentence naming the shafts and flanges that move with nothing carrying inertia on
+    them (no part with a mass ``m`` or an inertia ``J``), or "" where there are none.
+
+    Two motors on one shaft and nothing else (a rotary flow divider) balance their torques by
+    pressures alone: the shaft's speed appears in the flows only, and no equation sets it.
+    """
+    groups: dict = {}
+    for path, comp in (getattr(system, "_components", None) or {}).items():
+        params = getattr(comp, "params", None)
+        heavy = getattr(params, "m", None) is not None or getattr(params, "J", None) is not None
+        for port_name, port in type(comp).ports.items():
+            domain = port.domain
+            if domain.through is None or domain.name == "hydraulic":
+                continue
+            try:
+                _, idx, _ = system.resolve(f"{path}.{port_name}.{domain.across}")
+            except KeyError:
+                continue
+            if idx is None or not system.differential[idx]:
+                continue
+            g = groups.setdefault(idx, [domain.name, False, []])
+            g[1] = g[1] or heavy
+            g[2].append(f"{path}.{port_name}")
+    bare = [(kind, ports) for kind, heavy, ports in groups.values() if not heavy]
+    if not bare:
+        return ""
+    what = "; ".join(f"the {'shaft' if kind == 'rotational' else 'flange'} joining "
+                     f"{', '.join(ports)}" for kind, ports in bare)
+    return (f"Nothing with inertia moves with {what}: where its torques or forces balance by "
+            f"the pressures alone (two motors on one shaft, a rotary flow divider), no "
+            f"equation sets its speed. Put an Inertia (on a flange, a Mass) on it, however "
+            f"small.")
 
 
 def _algebraic_start(system, exc, y, t0, calc_initial):

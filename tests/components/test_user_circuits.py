@@ -454,3 +454,50 @@ def test_position_servo_with_a_pi_controller_settles_on_its_set_point():
     sol = simulate(c, 20.0, rtol=1e-8, t_eval=[0.5, 20.0])
     assert sol["pid.y"].max() <= 1.0 + 1e-7
     assert sol["m.flange.x"][-1] == pytest.approx(0.2, abs=1e-4)
+
+
+def _flow_divider(inertia):
+    """20 L/min into two 10 cm^3/rev motors on one shaft, each out through its own orifice."""
+    from pvgraph.components import HydraulicMotor
+    c = Circuit("divider")
+    n = c.add("n", VolumeNode(V="0.1 L"))
+    c.connect(c.add("src", FlowSource(Q="20 L/min")).port, n.port)
+    t = c.add("t", Tank())
+    for k, area in ((1, "5 mm^2"), (2, "10 mm^2")):
+        m = c.add(f"m{k}", HydraulicMotor(D="10 cm^3/rev", eta_v=1.0, eta_hm=1.0))
+        v = c.add(f"v{k}", VolumeNode(V="0.1 L"))
+        o = c.add(f"o{k}", Orifice(A=area))
+        c.connect(n.port, m.A)
+        c.connect(m.B, v.port, o.a)
+        c.connect(o.b, t.port)
+    shaft = ["m1.shaft", "m2.shaft"]
+    if inertia:
+        shaft.append(c.add("j", Inertia(J=1e-2)).shaft)
+    c.connect(*shaft)
+    return c
+
+
+def test_rotary_flow_divider_splits_evenly_and_balances_the_pressures():
+    """Ideal motors of one displacement on one shaft pass equal flows whatever their loads, and
+    the shaft's torque balance sets the inlet at the mean of the outlets: q1 = q2 = 10 L/min,
+    p_n = (p_1 + p_2) / 2 with p_k the orifice law's drop for 10 L/min."""
+    from pvgraph.laws import orifice_flow, orifice_transition_pressure
+    op = steady_state(_flow_divider(inertia=True).compile())
+    q = 10.0 / 60e3
+    assert op["o1.q"] == pytest.approx(q, rel=1e-9)
+    assert op["o2.q"] == pytest.approx(q, rel=1e-9)
+    p = {}
+    for k, area in ((1, 5e-6), (2, 10e-6)):
+        dp_t = orifice_transition_pressure(0.6, math.sqrt(4 * area / math.pi), 870.0, 3.2e-5,
+                                           100.0)   # the Orifice's default transition
+        p[k] = brentq(lambda dp: orifice_flow(0.6, area, dp, 870.0, dp_t) - q, 1.0, 1e8,
+                      xtol=1e-9)
+        assert op[f"v{k}.port.p"] == pytest.approx(p[k], rel=1e-9)
+    assert op["n.port.p"] == pytest.approx(0.5 * (p[1] + p[2]), rel=1e-9)
+
+
+def test_flow_divider_without_inertia_is_told_to_add_one():
+    from pvgraph.errors import InitializationError
+    with pytest.raises(InitializationError, match=r"the shaft joining m1.shaft, m2.shaft"
+                                                  r".*Put an Inertia"):
+        simulate(_flow_divider(inertia=False), 0.1)
