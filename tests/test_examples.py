@@ -34,6 +34,20 @@ def _build_circuit(r, tmp_path):
     assert (tmp_path / "build_circuit.png").exists()
 
 
+@check("position_servo")
+def _position_servo(r, tmp_path):
+    assert r["x_steady"] == pytest.approx(0.1, abs=1e-9)      # the integral: no steady error
+    assert r["dc_gain"] == pytest.approx(1.0, abs=1e-6)
+    assert r["max_pole_real"] < 0.0 and r["n_poles"] == 8      # stable closed loop
+    assert r["command_max"] <= 1.0 + 1e-7                      # the output limit holds
+    assert r["command_in_window"] == pytest.approx(1.0, abs=1e-7)
+    # full command, pump-limited: the carriage moves at 20 L/min over the cap area
+    assert r["speed_saturated"] == pytest.approx(r["speed_pump_limited"], rel=1e-3)
+    assert 0.0 < r["overshoot_mm"] < 2.0
+    assert r["x_final"] == pytest.approx(0.1, abs=1e-3)
+    assert (tmp_path / "position_servo.png").exists()
+
+
 @check("shaker_table")
 def _shaker_table(r, tmp_path):
     # base-excited oscillator: steady amplitude Y * transmissibility
