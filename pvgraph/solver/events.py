@@ -20,6 +20,7 @@ from typing import Callable, Optional
 
 import numpy as np
 from scipy.optimize import brentq
+from pvgraph.errors import SolverError
 
 __all__ = ["Event", "normalize_events", "EventTracker"]
 
@@ -145,8 +146,29 @@ class EventTracker:
         self.nroot += self.m
         if self._vector is not None:
             g_all, idx = self._vector
-            return np.asarray(g_all(t, y, yp), dtype=float)[idx]
-        return np.array([float(ev.fun(t, y, yp)) for ev in self.events])
+            g = np.asarray(g_all(t, y, yp), dtype=float)[idx]
+        else:
+            try:
+                g = np.array([float(ev.fun(t, y, yp)) for ev in self.events])
+            except (TypeError, ValueError):
+                self._name_bad_value(t, y, yp)
+                raise
+        if not np.all(np.isfinite(g)):
+            k = int(np.flatnonzero(~np.isfinite(g))[0])
+            raise SolverError(f"event {self.events[k].name!r} returned {g[k]} at t = {t:.9g}; "
+                              f"an event function must return a finite number")
+        return g
+
+    def _name_bad_value(self, t, y, yp):
+        """Raise naming the event whose function does not return one number."""
+        for ev in self.events:
+            value = ev.fun(t, y, yp)
+            try:
+                float(value)
+            except (TypeError, ValueError):
+                raise TypeError(f"event {ev.name!r} returned {value!r} (shape "
+                                f"{np.shape(value)}); an event function returns one number "
+                                f"(give several events as a list of functions)") from None
 
     def reset(self, t, y, yp, unknown=(), crossed=None):
         """Start tracking at t; events in ``unknown`` get their sign from the next step.

@@ -31,6 +31,7 @@ __all__ = ["SPARSE_MIN_N", "column_groups", "JacobianEvaluator", "LUSolver"]
 SPARSE_MIN_N = 100          # below this size dense LAPACK LU beats SuperLU
 SQRT_UROUND = math.sqrt(np.finfo(float).eps)
 ZERO_COLUMN_GROWTH = 1e6    # a difference column lost to rounding is retried this much larger
+_GROWTHS = (1.0, ZERO_COLUMN_GROWTH, ZERO_COLUMN_GROWTH ** 2)   # ... and again
 
 CLU_ORDER_MIN_N = 32        # the C LU orders columns to reduce fill from this size on
 _COLUMN_ORDERS = {}         # the C LU's column orders by pattern and by pattern object
@@ -225,7 +226,7 @@ class JacobianEvaluator:
             yt = y.copy()
             ypt = yp.copy()
             for j in range(n):
-                for grow in (1.0, ZERO_COLUMN_GROWTH):
+                for grow in _GROWTHS:
                     yt[j] += grow * dy[j]
                     ypt[j] += grow * dyp[j]
                     col = np.asarray(fun(t, yt, ypt)) - r
@@ -246,6 +247,23 @@ class JacobianEvaluator:
             rr = np.asarray(fun(t, yt, ypt))
             data[pos] = (rr[rows[pos]] - r[rows[pos]]) / inc[cols[pos]]
         self.nfev += len(self.groups)
+        lost = np.ones(n, dtype=bool)
+        lost[cols[data != 0.0]] = False
+        for j in np.flatnonzero(lost):
+            # a column lost to rounding (an increment far below the residual's size, as for
+            # y' of a tiny variable over a long interval) is retried alone, larger
+            at = cols == j
+            for grow in _GROWTHS[1:]:
+                yt = y.copy()
+                ypt = yp.copy()
+                yt[j] += grow * dy[j]
+                ypt[j] += grow * dyp[j]
+                rr = np.asarray(fun(t, yt, ypt))
+                self.nfev += 1
+                got = (rr[rows[at]] - r[rows[at]]) / (grow * inc[j])
+                if got.any():
+                    data[at] = got
+                    break
         if self.sparse:
             return sp.csc_matrix((data, self.pattern.indices, self.pattern.indptr),
                                  shape=(n, n))

@@ -8,6 +8,8 @@ consistent initialisation and a restart at order 1), dense output and statistics
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from pvgraph.errors import InitializationError, SolverError
@@ -175,22 +177,39 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
     ----------
     .. [1] A. C. Hindmarsh et al., "User Documentation for IDA", SUNDIALS.
     """
-    t0, t_end = float(t_span[0]), float(t_span[1])
+    try:
+        t0, t_end = (float(t) for t in t_span)
+    except (TypeError, ValueError):
+        raise ValueError(f"t_span must be two numbers (t0, t_end), got {t_span!r}") from None
     if not (np.isfinite(t0) and np.isfinite(t_end) and t_end > t0):
         raise ValueError(f"t_span must be finite and increasing, got {t_span!r}")
     y0 = np.array(y0, dtype=float).ravel()
     yp0 = np.array(yp0, dtype=float).ravel()
     n = y0.size
+    if n == 0:
+        raise ValueError("y0 is empty: there is nothing to integrate")
     if yp0.size != n:
         raise ValueError(f"y0 has {n} entries but yp0 has {yp0.size}")
     if not (np.all(np.isfinite(y0)) and np.all(np.isfinite(yp0))):
         raise InitializationError("y0 and yp0 must be finite")
     rtol = float(rtol)
-    if not rtol > 0.0:
-        raise ValueError(f"rtol must be positive, got {rtol}")
+    if not rtol > 0.0 or not np.isfinite(rtol):
+        raise ValueError(f"rtol must be positive and finite, got {rtol}")
+    if rtol < RTOL_MIN:
+        # below this the error test asks for digits the arithmetic does not have: the steps
+        # shrink to rounding (scipy's solvers raise rtol to the same floor)
+        warnings.warn(f"rtol = {rtol:g} is below {RTOL_MIN:g} (100 machine epsilons); using "
+                      f"{RTOL_MIN:g}", RuntimeWarning, stacklevel=2)
+        rtol = RTOL_MIN
     atol = atol_vector(atol, n)
-    if not np.all(atol > 0.0):
-        raise ValueError("atol must be positive for every variable")
+    bad = np.flatnonzero(~(atol > 0.0) | ~np.isfinite(atol))
+    if bad.size:
+        which = ", ".join(f"{'y[%d]' % j if var_names is None else repr(str(var_names[j]))} = "
+                          f"{float(atol[j])!r}" for j in bad[:3])
+        raise ValueError(f"atol must be positive and finite for every variable; got {which}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or \
+            max_steps < 1:
+        raise ValueError(f"max_steps must be a positive integer, got {max_steps!r}")
     if var_names is not None:
         var_names = [str(v) for v in var_names]
         if len(var_names) != n:
@@ -210,6 +229,7 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
                           newton_iterate_retry, c_step, linear_solver)
 
 
+RTOL_MIN = 100.0 * np.finfo(float).eps   # smallest rtol taken (scipy's floor too)
 CLU_MAX_N = 600     # largest system the C sparse LU takes (it is given dense matrices)
 
 

@@ -120,3 +120,41 @@ def test_the_ida_backend_names_a_restart_after_a_failure_as_such():
     with pytest.raises(InitializationError, match="restarting after a step failure at t = 1"):
         solve_dae_sundials(lambda t, y, yp: np.array([yp[0] - y[1], y[1] ** 2 + t - 1.0]),
                            (0.0, 2.0), [0.0, 1.0], [1.0, 0.0], algebraic=[1])
+
+
+def _decay(t, y, yp):
+    return yp + y
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"y0": [], "yp0": []}, "y0 is empty"),
+    ({"atol": np.inf}, r"atol must be positive and finite .* y\[0\] = inf"),
+    ({"atol": [1e-8, np.inf], "y0": [1.0, 1.0], "yp0": [-1.0, -1.0]},
+     r"y\[1\] = inf"),
+    ({"t_span": (0.0, 1.0, 2.0)}, r"t_span must be two numbers"),
+    ({"t_span": 1.0}, r"t_span must be two numbers"),
+    ({"max_steps": 0}, "max_steps must be a positive integer"),
+    ({"max_steps": -1}, "max_steps must be a positive integer"),
+    ({"rtol": np.inf}, "rtol must be positive and finite"),
+])
+def test_bad_arguments_are_named(kwargs, match):
+    args = {"t_span": (0.0, 1.0), "y0": [1.0], "yp0": [-1.0], **kwargs}
+    with pytest.raises(ValueError, match=match):
+        solve_dae(_decay, args.pop("t_span"), args.pop("y0"), args.pop("yp0"), **args)
+
+
+def test_rtol_below_the_arithmetic_is_raised_to_its_floor_with_a_warning():
+    with pytest.warns(RuntimeWarning, match="below 2.22045e-14"):
+        sol = solve_dae(_decay, (0.0, 1.0), [1.0], [-1.0], rtol=1e-20, atol=1e-20)
+    assert sol.y[-1, 0] == pytest.approx(np.exp(-1.0), rel=1e-12)
+    assert sol.stats["nsteps"] < 1000
+
+
+def test_event_returning_nan_or_several_values_is_named():
+    from pvgraph.solver import Event
+    with pytest.raises(SolverError, match="event 'g_nan' returned nan"):
+        solve_dae(_decay, (0.0, 1.0), [1.0], [-1.0],
+                  events=[Event(lambda t, y, yp: np.nan, name="g_nan")])
+    with pytest.raises(TypeError, match=r"event 'g_vec' returned .* \(shape \(2,\)\)"):
+        solve_dae(_decay, (0.0, 1.0), [1.0], [-1.0],
+                  events=[Event(lambda t, y, yp: np.array([1.0, -1.0]), name="g_vec")])
