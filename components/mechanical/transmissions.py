@@ -20,13 +20,18 @@ carry inertia (an ideal constraint between two inertias is a DAE of index two)::
 
 ``Gear``: shafts ``a`` (input) and ``b`` (output), ratio ``i = w_a / w_b`` (Modelica's
 ``IdealGear`` convention: i > 1 reduces the speed and multiplies the torque), efficiency ``eta``
-for the power flowing from a to b::
+of the mesh, a loss whichever way the power flows::
 
-    a.phi = i * b.phi,   b.tau = -i * eta * a.tau      (ideal teeth; eta = 1 conserves power)
-    T = k (a.phi - i b.phi) + d der(a.phi - i b.phi),   a.tau = T,   b.tau = -i eta T  (compliant)
+    a.phi = i * b.phi,   b.tau = -i * e * a.tau          (ideal teeth)
+    T = k (a.phi - i b.phi) + d der(a.phi - i b.phi),   a.tau = T,   b.tau = -i e T  (compliant)
+    e = eta        while power flows from a to b (P_a = a.tau * der(a.phi) > 0),
+    e = 1 / eta    while it flows from b to a (an overrunning load driving the input back),
+    e = (eta + 1/eta)/2 + (eta - 1/eta)/2 * tanh(P_a / P_eps)      (smooth in between)
 
-The efficiency is a constant torque ratio, right while power flows from a to b; it is the
-simple gearbox model of a drive sized at one operating point, not a direction-dependent loss.
+so the power leaving is eta times the power entering in both directions (a winch lowering its
+load through the gearbox heats the gearbox as much as one lifting it). ``eta = 1`` is the
+lossless gear, ``b.tau = -i a.tau``. Self-locking (a worm gear holding its load) is not
+modelled.
 """
 
 from __future__ import annotations
@@ -34,6 +39,7 @@ from __future__ import annotations
 from pydantic import Field, field_validator
 
 from pvgraph.component import Component, Mechanical, Params, der
+from pvgraph.laws import smooth_sign
 
 from .rotational import Rotational
 
@@ -87,7 +93,10 @@ class GearParams(Params):
                      description="Ratio w_a / w_b [-] (i > 1: b turns slower with more torque); "
                                  "negative reverses the direction")
     eta: float = Field(1.0, gt=0.0, le=1.0,
-                       description="Efficiency for power flowing from a to b [-]")
+                       description="Mesh efficiency [-], in both directions of the power flow")
+    P_eps: float = Field(1.0, gt=0.0, le=1e6,
+                         description="Power over which the loss changes sides when the power "
+                                     "flow reverses [W] (with eta < 1)")
     k: float | None = Field(None, gt=0.0, le=1e12,
                             description="Torsional mesh stiffness at a [N m/rad]; None: ideal, "
                                         "rigid teeth")
@@ -102,15 +111,23 @@ class GearParams(Params):
 
 
 class Gear(Component):
-    """Gearbox between two shafts: ``a.phi = i b.phi``, ``b.tau = -i eta a.tau`` (module
-    docstring)."""
+    """Gearbox between two shafts: ``a.phi = i b.phi``, ``b.tau = -i e a.tau`` with the loss
+    ``e`` = eta or 1/eta by the direction of the power flow (module docstring)."""
 
     Params = GearParams
     ports = {"a": Rotational("input shaft"), "b": Rotational("output shaft")}
 
     def equations(self, v, p):
         if p.k is None:
-            return [v.a.phi - p.i * v.b.phi, v.b.tau + p.i * p.eta * v.a.tau]
-        twist = v.a.phi - p.i * v.b.phi
-        T = v.observe("T", p.k * twist + p.d * der(twist), "N m", "mesh torque at a")
-        return [v.a.tau - T, v.b.tau + p.i * p.eta * T]
+            T = v.a.tau
+            rows = [v.a.phi - p.i * v.b.phi]
+        else:
+            twist = v.a.phi - p.i * v.b.phi
+            T = v.observe("T", p.k * twist + p.d * der(twist), "N m", "mesh torque at a")
+            rows = [v.a.tau - T]
+        e = 1.0
+        if p.eta < 1.0:
+            P_a = v.observe("P_a", T * der(v.a.phi), "W", "power into the gear at a")
+            e = 0.5 * (p.eta + 1.0 / p.eta) + 0.5 * (p.eta - 1.0 / p.eta) * smooth_sign(
+                P_a, p.P_eps)
+        return rows + [v.b.tau + p.i * e * T]
