@@ -10,12 +10,14 @@ coordinate ``s`` (``s = u`` for P-A and B-T, ``s = -u`` for P-B and A-T). An edg
 ``lap`` (positive: overlap, closed at centre; negative: underlap, open at centre) opens, for
 ``edge="linear"``, as::
 
-    A(s) = A_max * (onset(s - lap + eps/2) - onset(s - 1 + eps/2)) / (1 - lap) + A_leak
+    A(s) = A_max * (onset(s - lap + eps/2) - onset(s - 1)) / (1 - lap) + A_leak
 
 ``onset`` is the quadratic-onset max(., 0) of width ``eps = 1e-3``
 (:func:`pvgraph.components.mechanical.laws.onset_penetration`), so ``A = A_max (s - lap) / (1 - lap)``
-exactly in the metering range ``lap + eps/2 <= s <= 1 - eps/2``, exactly ``A_max`` past
-``s = 1 + eps/2``, rounded in between. With
+exactly in the metering range ``lap + eps/2 <= s <= 1``: at full stroke, ``s = 1``, the area is
+exactly ``A_max`` (a servo valve at full command passes its rated flow), and the rounding of the
+upper corner lies past the stroke (``A`` levels off at ``A_max (1 + eps / (2 (1 - lap)))`` from
+``s = 1 + eps``). With
 ``edge="table"`` the area is ``A_max * table(s - lap)``, linear interpolation through
 ``(s_table, A_table)`` (fractions of ``A_max``, held at the ends).
 
@@ -37,8 +39,8 @@ all tend to close the valve; their sum along ``-sign(u)`` is observed as ``F_flo
 sizing the actuator (the signal-driven spool itself is ideal).
 
 ``DirectionalValve42`` is the 4/3 geometry traversed from ``u = 0`` (P -> B, A -> T) to
-``u = 1`` (P -> A, B -> T) with a closed crossover of width ``lap``: ``s = (2u - 1)(1 + 2 eps)``,
-so both positions are fully open. ``DirectionalValve32``:
+``u = 1`` (P -> A, B -> T) with a closed crossover of width ``lap``: ``s = 2u - 1``, so both
+positions are fully open, at exactly ``A_max``. ``DirectionalValve32``:
 ports P, A, T; ``u = 1`` P -> A, ``u = 0`` A -> T. ``DirectionalValve22``: ports P, A; open at
 ``u = 1`` (normally closed) or at ``u = 0`` (``normally_open``).
 
@@ -70,7 +72,6 @@ __all__ = ["DirectionalValve43", "DirectionalValve42", "DirectionalValve32",
            "DirectionalValve22", "ServoValve", "edge_area"]
 
 EDGE_EPS = 1e-3  # rounding of the edge opening [-] (fraction of the stroke)
-SWITCH = 1.0 + 2.0 * EDGE_EPS  # two-position valves: u = 0 and 1 reach past full opening
 
 
 class EdgeFlowParams(Params):
@@ -114,7 +115,7 @@ def edge_area(s, lap, p: SpoolEdgeParams):
         table = E.Table(p.s_table, p.A_table, method="linear", name="edge area")
         return p.A_leak + p.A_max * E.interp(table, s - lap)
     h = 0.5 * EDGE_EPS
-    opening = onset_penetration(s - lap + h, EDGE_EPS) - onset_penetration(s - 1.0 + h, EDGE_EPS)
+    opening = onset_penetration(s - lap + h, EDGE_EPS) - onset_penetration(s - 1.0, EDGE_EPS)
     return p.A_leak + p.A_max * opening / (1.0 - lap)
 
 
@@ -186,7 +187,7 @@ class DirectionalValve42(Component):
     ports = {**FOUR_PORTS, "u": SignalIn("spool position: 0 or 1 (fraction of the stroke)")}
 
     def equations(self, v, p):
-        return four_way(v, SWITCH * (2.0 * v.u - 1.0), (p.lap,) * 4, p)
+        return four_way(v, 2.0 * v.u - 1.0, (p.lap,) * 4, p)
 
 
 class DirectionalValve32(Component):
@@ -197,7 +198,7 @@ class DirectionalValve32(Component):
              "u": SignalIn("spool position: 0 or 1 (fraction of the stroke)")}
 
     def equations(self, v, p):
-        s = SWITCH * (2.0 * v.u - 1.0)
+        s = 2.0 * v.u - 1.0
         q_pa = _edge(v, "PA", edge_area(s, p.lap, p), v.P.p - v.A.p, p)
         q_at = _edge(v, "AT", edge_area(-s, p.lap, p), v.A.p - v.T.p, p)
         return [v.P.q - q_pa, v.T.q + q_at, v.P.q + v.A.q + v.T.q]
@@ -215,7 +216,7 @@ class DirectionalValve22(Component):
              "u": SignalIn("spool position: 0 or 1 (fraction of the stroke)")}
 
     def equations(self, v, p):
-        s = SWITCH * (1.0 - 2.0 * v.u) if p.normally_open else SWITCH * (2.0 * v.u - 1.0)
+        s = 1.0 - 2.0 * v.u if p.normally_open else 2.0 * v.u - 1.0
         q = _edge(v, "PA", edge_area(s, p.lap, p), v.P.p - v.A.p, p)
         return [v.P.q - q, v.P.q + v.A.q]
 

@@ -23,8 +23,11 @@ EDGES = ("PA", "BT", "PB", "AT")
 
 
 def area(s, lap):
-    """The documented linear edge, written out."""
-    assert not (lap - EPS < s < lap + EPS or 1 - EPS < s < 1 + EPS), "in a rounded corner"
+    """The documented linear edge, written out: exact up to full stroke, s = 1, and level at
+    A_max (1 + eps / (2 (1 - lap))) past the rounding beyond it."""
+    assert not (lap - EPS < s < lap + EPS or 1 < s < 1 + EPS), "in a rounded corner"
+    if s >= 1.0 + EPS:
+        return LEAK + A_MAX * (1.0 + EPS / (2.0 * (1.0 - lap)))
     return LEAK + A_MAX * min(max(s - lap, 0.0), 1.0 - lap) / (1 - lap)
 
 
@@ -37,7 +40,7 @@ def q(A, dp):
     return orifice_flow(CD, A, dp, RHO, DP_T)
 
 
-@pytest.mark.parametrize("u", [0.5, -0.3, 1.2])
+@pytest.mark.parametrize("u", [0.5, -0.3, 1.0, -1.0, 1.2])
 def test_closed_centre_metering_edges(u):
     r = flows(DirectionalValve43(A_max=A_MAX, lap=0.1), u)
     assert r["q_PA"] == pytest.approx(q(area(u, 0.1), bar(80)), rel=1e-9)
@@ -115,6 +118,18 @@ def test_servo_first_order_step_and_rated_flow():
     assert q(A_rated, bar(35)) == pytest.approx(lpm(40), rel=1e-5)   # (dp_t rounding 2e-6)
     assert sol.final("dut.q_PA") == pytest.approx(q(0.8 * A_rated + LEAK, bar(35)), rel=1e-7)
     assert sol.final("dut.q_BT") == pytest.approx(q(0.8 * A_rated + LEAK, bar(35)), rel=1e-7)
+
+
+@requires_solver
+@pytest.mark.parametrize("command", [1.0, -1.0, 1.5])
+def test_servo_at_full_command_passes_its_rated_flow(command):
+    """Full command (or beyond: clipped) at the rated drop, 35 bar per edge: Q_nom, up to the
+    2e-6 of the laminar rounding (dp_t), not short of it by the edge's corner rounding."""
+    bench = bench_circuit(ServoValve(Q_nom=lpm(40), order=1, tau=1e-3), P=Pressure(bar(70)),
+                          A=Pressure(bar(35)), B=Pressure(bar(35)), T=Pressure(0.0),
+                          i=Signal(command))
+    sol = simulate(bench, 0.05, rtol=1e-9)
+    assert abs(sol.final("dut.P.q")) == pytest.approx(lpm(40), rel=3e-6)
 
 
 @requires_solver
