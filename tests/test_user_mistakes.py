@@ -609,3 +609,22 @@ def test_a_pump_straight_into_a_check_valve_starts():
         c.connect(ck.b, end.port)
         sol = simulate(c, 0.01)
         assert sol.final("ck.a.p") - back == pytest.approx(dp, rel=1e-4)
+
+
+def test_steady_pressure_below_the_vapour_pressure_is_warned_of():
+    """A flow source drawing 5 L/min from a node fed from tank through a check valve that
+    cracks at 2 bar: the steady equations balance the flows at -2.36 bar gauge, a tension no
+    oil carries (a run stops at the vapour pressure and warns of cavitation)."""
+    from pvgraph.analysis import steady_state
+    from pvgraph.components import CheckValve
+    c = Circuit("suction")
+    c.add("src", FlowSource(Q="-5 L/min"))
+    c.add("n", VolumeNode(V="0.2 L"))
+    c.add("chk", CheckValve(A="20 mm^2", p_crack="2 bar", dp_open="1 bar"))
+    c.add("tank", Tank())
+    c.connect("src.port", "n.port", "chk.b")
+    c.connect("chk.a", "tank.port")
+    with pytest.warns(PlausibilityWarning, match=r"below the oil's vapour pressure: n.port.p "
+                                                 r"is -2.36\d* bar gauge \(-1.35 bar absolute\)"):
+        op = steady_state(c.compile())
+    assert op["n.port.p"] < -2e5

@@ -318,8 +318,19 @@ def _solve(J, rhs):
     return dy
 
 
-def _newton(sc, y, tol, max_iter, c=0.0, y_prev=None):
+LIMIT_NOMINALS = 10.0      # a limited Newton step moves an unknown by at most this many
+                           # nominal values (10 x 10 bar for a pressure), or by its own size
+LIMITED_MAX_ITER = 200
+
+
+def _newton(sc, y, tol, max_iter, c=0.0, y_prev=None, limited=False):
     """Damped Newton on F(t, y, c (y - y_prev)) = 0 (c = 0: the steady state).
+
+    ``limited``: no unknown moves by more than ``max(10 nominal, |y|)`` in one step (the
+    voltage limiting of circuit simulators). From a valve closed at the start, its leakage's
+    slope sends the first full step a million times too far, past the opening, where the
+    next step throws it back; limited, the pressure climbs (doubling at most) until the valve
+    opens, and Newton converges from there.
 
     Returns ``(y, norm, iterations, converged)``.
     """
@@ -340,10 +351,17 @@ def _newton(sc, y, tol, max_iter, c=0.0, y_prev=None):
         except np.linalg.LinAlgError:
             return y, fn, it, False
         lam = 1.0
-        while lam > 1e-8:
+        if limited:
+            reach = np.max(np.abs(dy) / np.maximum(LIMIT_NOMINALS * sc.xs, np.abs(y)))
+            lam = min(1.0, 1.0 / reach) if reach > 0.0 else 1.0
+        # limited steps cross a flat stretch (a closed valve's leakage) where the residual
+        # hardly falls: any fall is taken there
+        sufficient = 0.0 if limited else 1e-4
+        lam_min = 1e-8 * lam
+        while lam > lam_min:
             y_new = y + lam * dy
             fn_new = sc.norm(y_new, yp_of(y_new))
-            if fn_new <= (1.0 - 1e-4 * lam) * fn:
+            if fn_new <= (1.0 - sufficient * lam) * fn and (not limited or fn_new < fn):
                 break
             lam *= 0.5
         else:
@@ -489,6 +507,18 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
         total += steps + its
         method = "continuation"
     if not ok:
+        # valves closed at the start, with no volume to make continuation's steps gentle
+        # (a flow source straight into a check valve that cracks at 50 bar): Newton with
+        # limited steps, then polished with the rows scaled where it ended
+        y2, fn2, its2, _ = _newton(sc, y.copy(), tol, LIMITED_MAX_ITER, limited=True)
+        total += its2
+        if np.isfinite(fn2):
+            sc_here = _Scaled(problem, t, y2)
+            y3, fn3, its3, ok3 = _newton(sc_here, y2, tol, max_iter)
+            total += its3
+            if ok3:
+                sc, y1, fn, ok, method = sc_here, y3, fn3, True, "limited newton"
+    if not ok:
         lines = _culprits(problem, sc, y1)
         raise InitializationError(
             f"{system.name}: no steady state found (scaled residual {fn:.3g} > {tol:g} after "
@@ -526,6 +556,10 @@ def _undetermined(system, t, y, yp, cyclic) -> list[str]:
     return [system.names[j] for j in np.flatnonzero(~used) if int(j) not in skip]
 
 
+P_ATM = 101325.0                  # [Pa] the atmosphere that gauge pressures are read from
+VAPOUR_GAUGE = -P_ATM + 2000.0    # [Pa] mineral oil's vapour pressure (2 kPa), as gauge
+
+
 def _check_pressures(system, y):
     """Warn of a steady pressure beyond the physical range (as ``simulate`` does along a
     run): a source into a dead end balanced only by a leakage gap."""
@@ -543,6 +577,20 @@ def _check_pressures(system, y):
             f"bar): {listed}. A flow source or pump feeding a closed valve or a dead end holds "
             f"a steady state only through leakage; add a relief valve or an outlet."),
             stacklevel=3)
+    # pressures are gauge: below -p_atm + p_vap the oil would have to carry tension. A run
+    # stops there (every chamber limits its pressure at the vapour pressure); the steady
+    # equations of a node balance its flows only and do not
+    vacuum = sorted((float(y[j]), system.names[j]) for j in cols
+                    if y[j] < VAPOUR_GAUGE and system.names[j].endswith(".p"))
+    if vacuum:
+        listed = "; ".join(f"{n} is {v / 1e5:.4g} bar gauge ({(v + P_ATM) / 1e5:.3g} bar "
+                           f"absolute)" for v, n in vacuum[:3])
+        warnings.warn(PlausibilityWarning(
+            f"{system.name}: steady pressure below the oil's vapour pressure: {listed}. No "
+            f"oil holds it: the oil cavitates there and this steady state is not physical. "
+            f"Something draws more flow from that node than reaches it (a pump's or a "
+            f"cylinder's suction behind a valve that needs a pressure drop to open); feed it "
+            f"from tank directly or through a make-up check valve."), stacklevel=3)
 
 
 def reduce_drift(op: OperatingPoint, A, B, C, x):

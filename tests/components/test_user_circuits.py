@@ -501,3 +501,38 @@ def test_flow_divider_without_inertia_is_told_to_add_one():
     with pytest.raises(InitializationError, match=r"the shaft joining m1.shaft, m2.shaft"
                                                   r".*Put an Inertia"):
         simulate(_flow_divider(inertia=False), 0.1)
+
+
+@pytest.mark.parametrize("p_crack_bar", [20.0, 50.0])
+@pytest.mark.parametrize("load", [None, 5e-6])
+def test_flow_source_straight_into_a_back_pressure_check_valve(p_crack_bar, load):
+    """20 L/min straight into a check valve cracking at 20 or 50 bar (no volume on the node),
+    then to tank or through a 5 mm^2 orifice: the inlet sits where the valve's opening law
+    passes the flow, over the load's drop. From the closed valve (its leakage's slope)
+    Newton's first step overshoots a million times; steady_state and simulate get there."""
+    from pvgraph.laws import orifice_flow
+    Q, p_crack, dp_open, A = 20 / 60e3, p_crack_bar * 1e5, 1e5, 20e-6
+
+    def valve_q(dp):
+        s = min(max((dp - p_crack) / dp_open, 0.0), 1.0)
+        return orifice_flow(0.6, 1e-12 + (A - 1e-12) * s * s * (3 - 2 * s), dp, 870.0, 1e3)
+
+    p_load = 0.0
+    c = Circuit("bp")
+    c.add("src", FlowSource(Q="20 L/min"))
+    c.add("chk", CheckValve(A=A, p_crack=p_crack, dp_open=dp_open))
+    c.add("tank", Tank())
+    c.connect("src.port", "chk.a")
+    if load is None:
+        c.connect("chk.b", "tank.port")
+    else:
+        c.add("load", Orifice(A=load, dp_t=1e4))
+        c.connect("chk.b", "load.a")
+        c.connect("load.b", "tank.port")
+        p_load = brentq(lambda p: orifice_flow(0.6, load, p, 870.0, 1e4) - Q, 0.0, 1e9,
+                        xtol=1e-6)
+    hand = p_load + brentq(lambda dp: valve_q(dp) - Q, p_crack, p_crack + dp_open, xtol=1e-6)
+    op = steady_state(c.compile())
+    assert op["src.port.p"] == pytest.approx(hand, rel=1e-9)
+    sol = simulate(c, 0.01)
+    assert sol.final("src.port.p") == pytest.approx(hand, rel=1e-9)
