@@ -321,6 +321,7 @@ def _solve(J, rhs):
 LIMIT_NOMINALS = 10.0      # a limited Newton step moves an unknown by at most this many
                            # nominal values (10 x 10 bar for a pressure), or by its own size
 LIMITED_MAX_ITER = 200
+CONTACT_NEWTON_ITERS = 30  # Newton iterations per continuation step, second attempt
 
 
 def _newton(sc, y, tol, max_iter, c=0.0, y_prev=None, limited=False):
@@ -375,14 +376,14 @@ def _newton(sc, y, tol, max_iter, c=0.0, y_prev=None, limited=False):
     return y, fn, max_iter, fn <= tol
 
 
-def _continuation(sc, y, tol, max_steps=400, dtau0=1e-6, dtau_max=1e6):
+def _continuation(sc, y, tol, max_steps=400, dtau0=1e-6, dtau_max=1e6, newton_iters=8):
     """Pseudo-transient continuation: implicit Euler steps with growing ``dtau``."""
     dtau = dtau0
     f0 = sc.norm(y)
     steps = 0
     while steps < max_steps and dtau < dtau_max * 10:
         steps += 1
-        y_new, _, _, ok = _newton(sc, y.copy(), 1e-10, 8, c=1.0 / dtau, y_prev=y)
+        y_new, _, _, ok = _newton(sc, y.copy(), 1e-10, newton_iters, c=1.0 / dtau, y_prev=y)
         if not ok:
             dtau *= 0.25
             if dtau < 1e-14:
@@ -506,6 +507,12 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
         y1, fn, its, ok = _newton(sc, y2, tol, max_iter)
         total += steps + its
         method = "continuation"
+        if not ok and np.isfinite(fn):
+            # as after Newton: the rows scaled where continuation ended (a rod carried onto
+            # its end stop: the stop's stiffness was not in the rows' scales at the start)
+            sc_here = _Scaled(problem, t, y1)
+            if sc_here.norm(y1) <= tol:
+                sc, fn, ok = sc_here, sc_here.norm(y1), True
     if not ok:
         # valves closed at the start, with no volume to make continuation's steps gentle
         # (a flow source straight into a check valve that cracks at 50 bar): Newton with
@@ -518,6 +525,20 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
             total += its3
             if ok3:
                 sc, y1, fn, ok, method = sc_here, y3, fn3, True, "limited newton"
+    if not ok and continuation:
+        # a load carried onto its end stop: the implicit Euler step that meets the stop's
+        # stiffness needs more Newton iterations than a step in free travel
+        y2, steps = _continuation(sc, y.copy(), tol, newton_iters=CONTACT_NEWTON_ITERS)
+        y3, fn3, its3, ok3 = _newton(sc, y2, tol, max_iter)
+        total += steps + its3
+        if not ok3 and np.isfinite(fn3):
+            sc_here = _Scaled(problem, t, y3)
+            fn3 = sc_here.norm(y3)
+            ok3 = fn3 <= tol
+            if ok3:
+                sc = sc_here
+        if ok3:
+            y1, fn, ok, method = y3, fn3, True, "continuation"
     if not ok:
         lines = _culprits(problem, sc, y1)
         raise InitializationError(
@@ -526,7 +547,12 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
             f"Largest residuals:\n" + "\n".join(lines) +
             "\nCheck that every volume has an outlet and every mass a restoring force" +
             (" (or, on a turning shaft, a friction or load torque: a torque on a free inertia "
-             "speeds it up for ever)." if any(u == "rad" for u in system.units) else "."))
+             "speeds it up for ever)." if any(u == "rad" for u in system.units) else ".") +
+            (" A load that comes to rest against an end stop is held only in contact: start "
+             "its mass at the stop (x0), or from the end of a settling run, "
+             "steady_state(system, y0=sol.y[-1])." if any(
+                 u == "m" and nm.endswith(".x") for u, nm in zip(system.units, system.names))
+             else ""))
     yp1 = np.zeros(system.n)
     info = {}
     if len(cyc):

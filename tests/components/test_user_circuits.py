@@ -536,3 +536,33 @@ def test_flow_source_straight_into_a_back_pressure_check_valve(p_crack_bar, load
     assert op["src.port.p"] == pytest.approx(hand, rel=1e-9)
     sol = simulate(c, 0.01)
     assert sol.final("src.port.p") == pytest.approx(hand, rel=1e-9)
+
+
+def _clamp(x0, b):
+    """10 bar on the cap side of a 20/10 cm^2 cylinder, the rod on a 10 kg mass."""
+    c = Circuit("clamp")
+    c.add("ps", PressureSource(p0="10 bar"))
+    c.add("t", Tank())
+    c.add("cyl", Cylinder(A_A="20 cm^2", A_rod="10 cm^2", stroke="0.5 m", V_dead_A="0.05 L",
+                          V_dead_B="0.05 L"))
+    c.add("m", Mass(m=10.0, x0=x0, b=b))
+    c.connect("ps.port", "cyl.A")
+    c.connect("cyl.B", "t.port")
+    c.connect("cyl.flange", "m.flange")
+    return c
+
+
+@pytest.mark.parametrize("x0", [0.2, 0.45, 0.5])
+def test_steady_state_of_a_rod_pressed_onto_its_end_stop(x0):
+    """The rod comes to rest on the stop with the stop carrying A_A p = 2000 N: x = stroke +
+    F/k_stop + eps_stop/2 (the cylinder's stop law), from a start anywhere in the stroke."""
+    op = steady_state(_clamp(x0, b=1000.0).compile())
+    assert op["m.flange.x"] == pytest.approx(0.5 + 2000.0 / 1e9 + 0.5e-6, abs=1e-12)
+    assert op["cyl.F_stop"] == pytest.approx(2000.0, rel=1e-9)
+
+
+def test_undamped_rod_pressed_onto_its_stop_is_told_how_to_start():
+    from pvgraph.errors import InitializationError
+    with pytest.raises(InitializationError, match=r"against an end stop .* start its mass at "
+                                                  r"the stop \(x0\)"):
+        steady_state(_clamp(0.2, b=0.0).compile())
