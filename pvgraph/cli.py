@@ -627,6 +627,9 @@ def _format_table(result, units, si, param_units=None) -> str:
             cells.append(f"{display(v, units.get(n, ''), si)[0]:>{w}.6g}" if v is not None
                          else f"{'-':>{w}s}")
         status = r.status if r.ok else f"{r.status}: " + " ".join((r.error or "").split())[:80]
+        warned = getattr(r, "warnings", ())
+        if warned:
+            status += f" ({len(warned)} warning{'s' if len(warned) > 1 else ''}, above)"
         lines.append(f"{r.index:>4d}  " + "  ".join(cells) + f"  {status}")
     return "\n".join(lines)
 

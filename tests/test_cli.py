@@ -383,7 +383,7 @@ def test_sweep_a_file_target_with_units(rig_file, tmp_path, capsys):
     assert p == pytest.approx([_p_steady(A=a) for a in A], rel=3e-3)
     assert data["units"] == {"node.port.p": "Pa"}
     assert (out / "sweep.csv").read_text().splitlines()[0] == \
-        "index,status,wall_time,orifice.A,node.port.p [Pa],error_type,error_message"
+        "index,status,wall_time,orifice.A,node.port.p [Pa],error_type,error_message,warnings"
     printed = capsys.readouterr().out
     assert "orifice.A [mm^2]" in printed and "node.port.p [bar]" in printed
     rows = _table_rows(printed, 3)     # parameters and outputs both in the units people read

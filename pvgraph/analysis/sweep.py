@@ -91,6 +91,7 @@ import signal
 import threading
 import time
 import traceback as _traceback
+import warnings as _warnings
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
@@ -109,7 +110,7 @@ SAMPLING_METHODS = ("uniform", "lhs")
 MAX_PROCESS_WORKERS = 61   # the largest pool ProcessPoolExecutor accepts on every platform
 OK, FAILED, TIMEOUT, NONFINITE = "ok", "failed", "timeout", "nonfinite"
 #: CSV columns every sweep writes; no parameter or output may take these names
-RESERVED_COLUMNS = ("index", "status", "wall_time", "error_type", "error_message")
+RESERVED_COLUMNS = ("index", "status", "wall_time", "error_type", "error_message", "warnings")
 CSV_NAME, JSON_NAME, LOG_NAME = "sweep.csv", "sweep.json", "cases.jsonl"
 LOG_VERSION = 1
 
@@ -144,6 +145,9 @@ class CaseResult:
     error_type: str | None = None
     error_message: str | None = None
     traceback: str | None = None
+    #: the warnings the case raised, ``"module.Category: message"`` each (recorded where the
+    #: case ran, in a worker process too, and warned again by :func:`sweep` when it ends)
+    warnings: list = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -162,7 +166,7 @@ class CaseResult:
                 "wall_time": _json_value(self.wall_time),
                 "params": {k: _json_value(v) for k, v in self.params.items()},
                 "outputs": {k: _json_value(v) for k, v in self.outputs.items()},
-                "error": err}
+                "error": err, "warnings": list(self.warnings)}
 
 
 def _scalar(name: str, value) -> float:
@@ -209,14 +213,20 @@ def _run_case(run: Callable, index: int, params: Mapping,
         previous = signal.signal(signal.SIGALRM, _alarm)
         signal.setitimer(signal.ITIMER_REAL, timeout)
     t0 = time.perf_counter()
+    caught: list = []
     try:
-        outputs = _check_outputs(run(**params), params)
+        with _warnings.catch_warnings(record=True) as caught:
+            _warnings.simplefilter("always")
+            outputs = _check_outputs(run(**params), params)
     except CaseTimeout:
         res = CaseResult(index, dict(params), {}, TIMEOUT, time.perf_counter() - t0,
                          "CaseTimeout", f"stopped after the time limit of {timeout:g} s")
+        res.warnings = _warning_texts(caught)
         return res
     except (Exception, SystemExit) as exc:
-        return _failure(index, params, exc, _traceback.format_exc(), time.perf_counter() - t0)
+        res = _failure(index, params, exc, _traceback.format_exc(), time.perf_counter() - t0)
+        res.warnings = _warning_texts(caught)
+        return res
     finally:
         if timed:
             signal.setitimer(signal.ITIMER_REAL, 0)
@@ -224,10 +234,41 @@ def _run_case(run: Callable, index: int, params: Mapping,
     wall = time.perf_counter() - t0
     bad = [n for n, v in outputs.items() if not math.isfinite(v)]
     if bad:
-        return CaseResult(index, dict(params), outputs, NONFINITE, wall, "NonFiniteOutput",
-                          f"output(s) {', '.join(bad)} not finite: "
-                          f"{', '.join(repr(outputs[n]) for n in bad)}")
-    return CaseResult(index, dict(params), outputs, OK, wall)
+        res = CaseResult(index, dict(params), outputs, NONFINITE, wall, "NonFiniteOutput",
+                         f"output(s) {', '.join(bad)} not finite: "
+                         f"{', '.join(repr(outputs[n]) for n in bad)}")
+    else:
+        res = CaseResult(index, dict(params), outputs, OK, wall)
+    res.warnings = _warning_texts(caught)
+    return res
+
+
+def _warning_texts(caught) -> list[str]:
+    """``"module.Category: message"`` of each distinct warning recorded, in order."""
+    out: dict[str, None] = {}
+    for w in caught:
+        cat = w.category
+        out[f"{cat.__module__}.{cat.__qualname__}: {w.message}"] = None
+    return list(out)
+
+
+def _warn_again(records) -> None:
+    """Warn, in the caller's process, of what the cases warned of where they ran: a
+    plausibility warning raised in a worker process would otherwise be lost, and a case at
+    1e13 bar read as ok."""
+    import importlib
+    for r in records:
+        for text in r.warnings:
+            qualified, _, message = text.partition(": ")
+            module, _, name = qualified.rpartition(".")
+            try:
+                category = getattr(importlib.import_module(module), name)
+                if not (isinstance(category, type) and issubclass(category, Warning)):
+                    raise TypeError
+            except (ImportError, AttributeError, TypeError, ValueError):
+                category = UserWarning
+            _warnings.warn(category(f"sweep case {r.index} {dict(r.params)}: {message}"),
+                           stacklevel=3)
 
 
 # --------------------------------------------------------------------------------------------
@@ -330,18 +371,19 @@ class SweepResult:
 
         Columns: ``index, status, wall_time``, the parameters, the outputs (SI, full precision,
         the unit in the column name when known; empty where a case failed), ``error_type,
-        error_message``. Tracebacks are in the JSON.
+        error_message, warnings`` (those a case raised, joined by " | "). Tracebacks are in
+        the JSON.
         """
         from ..simulate import _atomic_write
         outs = [f"{n} [{self.units[n]}]" if self.units.get(n) else n for n in self.output_names]
         header = (["index", "status", "wall_time"] + self.param_names + outs
-                  + ["error_type", "error_message"])
+                  + ["error_type", "error_message", "warnings"])
         rows = []
         for r in self.records:
             outs = [_csv_value(r.outputs[n]) if n in r.outputs else "" for n in self.output_names]
             rows.append([r.index, r.status, _csv_value(r.wall_time)]
                         + [_csv_value(r.params[n]) for n in self.param_names] + outs
-                        + [r.error_type or "", r.error_message or ""])
+                        + [r.error_type or "", r.error_message or "", " | ".join(r.warnings)])
 
         def write(f):
             w = csv.writer(f)
@@ -792,6 +834,7 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
         res = SweepResult([records[i] for i in sorted(records)], param_names, backend=backend,
                           wall_time=wall, units=units, n_cases=len(cases))
         _warn_unknown_units(res)
+        _warn_again(res.records)
         if out is not None:
             res.save(out)
         return res
@@ -853,6 +896,8 @@ def _log_record(r: CaseResult) -> dict:
     d = r.to_dict()
     if d["error"] is None:
         del d["error"]
+    if not d["warnings"]:
+        del d["warnings"]
     d["outputs"] = {k: (v if v is not None else repr(r.outputs[k])) for k, v in
                     d["outputs"].items()}
     return d
@@ -863,7 +908,7 @@ def _from_log(d: dict) -> CaseResult:
     outs = {k: float(v) for k, v in d.get("outputs", {}).items()}   # "nan", "inf" included
     return CaseResult(int(d["index"]), dict(d["params"]), outs, d["status"],
                       float(d.get("wall_time") or 0.0), err.get("type"), err.get("message"),
-                      err.get("traceback"))
+                      err.get("traceback"), list(d.get("warnings") or []))
 
 
 def _open_log(path, cases, param_names, units, kept):

@@ -69,6 +69,16 @@ class Unprintable:
         raise RuntimeError("cannot format this value")
 
 
+def warns_above_two(x):
+    """Squares x and warns (a plausibility warning, as steady_state's) where x > 2."""
+    import warnings
+
+    from pvgraph.errors import PlausibilityWarning
+    if x > 2:
+        warnings.warn(PlausibilityWarning(f"x = {x} is implausibly large"))
+    return {"y": float(x * x)}
+
+
 def orifice_cases():
     return grid({"A": AREAS, "p_supply": SUPPLIES})
 
@@ -287,3 +297,24 @@ def test_case_values_seeds_units_and_result_indexes_of_the_wrong_kind():
         result["x"]
     with pytest.raises(IndexError, match=r"case 5 is out of range: the result holds 2 cases"):
         result[5]
+
+
+@pytest.mark.parametrize("backend", ["serial", "process"])
+def test_warnings_of_the_cases_are_recorded_and_raised_again(backend, tmp_path):
+    """A case's warning, raised in a worker process, reaches the record, the CSV and JSON
+    files and the caller (a case at 1e13 bar is not just 'ok')."""
+    import json
+
+    from pvgraph.errors import PlausibilityWarning
+    with pytest.warns(PlausibilityWarning, match=r"sweep case 3 \{'x': 3\}: x = 3 is "
+                                                 r"implausibly large"):
+        result = sweep(warns_above_two, [{"x": x} for x in range(4)], backend=backend,
+                       workers=2, out=tmp_path)
+    assert [r.status for r in result] == ["ok"] * 4
+    assert [r.warnings for r in result][:3] == [[], [], []]
+    assert result[3].warnings == ["pvgraph.errors.PlausibilityWarning: x = 3 is implausibly "
+                                  "large"]
+    rows = (tmp_path / "sweep.csv").read_text().splitlines()
+    assert rows[0].endswith(",warnings") and rows[4].endswith("x = 3 is implausibly large")
+    saved = json.loads((tmp_path / "sweep.json").read_text())
+    assert saved["cases"][3]["warnings"] == result[3].warnings
