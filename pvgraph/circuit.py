@@ -389,7 +389,8 @@ class Circuit:
                 params = type(comp.params)(**{**dict(comp.params), **fields})
             except ValidationError as exc:
                 msg = _describe_validation(f"{type(comp).__name__} {comp.path!r}", exc,
-                                           list(type(comp.params).model_fields))
+                                           list(type(comp.params).model_fields), fields,
+                                           type(comp.params))
                 raise ParameterError(msg) from None
             out.append((comp, params))
         return out

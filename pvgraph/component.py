@@ -487,8 +487,9 @@ class Component:
             try:
                 params = cls.Params(**kwargs)
             except ValidationError as exc:
-                raise ParameterError(_describe_validation(cls.__name__, exc,
-                                                          list(cls.Params.model_fields))) from None
+                raise ParameterError(_describe_validation(
+                    cls.__name__, exc, list(cls.Params.model_fields), kwargs,
+                    cls.Params)) from None
         elif not isinstance(params, cls.Params):
             raise ParameterError(f"{cls.__name__} takes parameters of type {cls.Params.__name__}, "
                                  f"got {type(params).__name__}")
@@ -591,7 +592,15 @@ def _unknown_port_message(owner, name, ports) -> str:
             f"ports are {sorted(ports)}.{hint}")
 
 
-def _describe_validation(where: str, exc: ValidationError, fields=()) -> str:
+_BOUNDS = {"greater_than": ("gt", "greater than"), "greater_than_equal": ("ge", "at least"),
+           "less_than": ("lt", "less than"), "less_than_equal": ("le", "at most")}
+
+
+def _describe_validation(where: str, exc: ValidationError, fields=(), given=None,
+                         model=None) -> str:
+    """The errors of a parameter model, one line each. ``given``: the values as the user wrote
+    them, so that a bound broken by a quantity with a unit (``p_crack="1500 bar"``) is told in
+    that unit as well as in the field's SI one."""
     lines = []
     for err in exc.errors():
         loc = ".".join(str(x) for x in err["loc"]) or "(model)"
@@ -602,8 +611,35 @@ def _describe_validation(where: str, exc: ValidationError, fields=()) -> str:
                          f"{', '.join(fields)}")
         else:
             msg = err["msg"].removeprefix("Value error, ")
-            lines.append(f"  {loc} = {err.get('input')!r}: {msg}")
+            bound = _bound_in_units(err, loc, given, model)
+            value = err.get("input")
+            if err["type"] == "less_than_equal" and (err.get("ctx") or {}).get("le") == 1 and \
+                    isinstance(value, (int, float)) and 1 < value <= 100:
+                msg += f" (a fraction: {value:g} % is {value / 100:g}, or write '{value:g} %')"
+            lines.append(f"  {loc} = {bound or repr(value)}{'' if bound else ': ' + msg}")
     return f"invalid parameters for {where}:\n" + "\n".join(lines)
+
+
+def _bound_in_units(err, loc, given, model) -> str:
+    """``"'1500 bar' (1.5e+08 Pa): must be at most 1e+08 Pa (1000 bar)"`` for a bound broken
+    by a quantity written with a unit, else ""."""
+    from .units import _NUMBER, parse_unit
+    kind = _BOUNDS.get(err["type"])
+    raw = (given or {}).get(loc)
+    if kind is None or not isinstance(raw, str) or model is None:
+        return ""
+    limit = (err.get("ctx") or {}).get(kind[0])
+    match = _NUMBER.match(raw)
+    _, unit = _field_unit(model, loc)
+    if limit is None or match is None or not match.group(2):
+        return ""
+    try:
+        factor = parse_unit(match.group(2))[0]
+    except ParameterError:
+        return ""
+    si = f" {unit}" if unit else ""
+    return (f"{raw!r} ({err.get('input'):g}{si}): must be {kind[1]} {float(limit):g}{si} "
+            f"({float(limit) / factor:g} {match.group(2)})")
 
 
 def finite(value: float, what: str) -> float:

@@ -1066,7 +1066,8 @@ def _updated_model(model, fields: dict, path: str):
     try:
         return type(model).model_validate(data)
     except ValidationError as exc:
-        raise ParameterError(_describe_validation(path, exc, list(type(model).model_fields))) \
+        raise ParameterError(_describe_validation(path, exc, list(type(model).model_fields),
+                                                  fields, type(model))) \
             from None
 
 

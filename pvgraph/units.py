@@ -170,6 +170,9 @@ _UNITS = {
     "rps": (2.0 * math.pi, _dim(s=-1), False),
     "r": (2.0 * math.pi, _ONE, False),                        # revolution, "r/min" (ISO)
     "hr": (3600.0, _dim(s=1), False),
+    "inch": (0.0254, _dim(m=1), False), "inches": (0.0254, _dim(m=1), False),
+    "foot": (0.3048, _dim(m=1), False), "feet": (0.3048, _dim(m=1), False),
+    "USgpm": (3.785411784e-3 / 60.0, _dim(m=3, s=-1), False),
 }
 #: units that count an angle (a power of the radian, which is dimensionless in SI): the
 #: parser carries their angle exponent beside the dimension, see :func:`to_unit`

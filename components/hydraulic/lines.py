@@ -127,8 +127,13 @@ def segmented_line(n: int, name: str = "line", **params) -> Circuit:
     if "l" not in params:
         from pvgraph.errors import ParameterError
         raise ParameterError("segmented_line: give the total length l [m]")
+    from pvgraph.errors import ParameterError
     from pvgraph.units import to_unit
-    seg = dict(params, l=to_unit(params["l"], "m", "l") / n)
+    length = to_unit(params["l"], "m", "l")
+    if not length > 0.0:
+        raise ParameterError(f"segmented_line: the total length l must be positive, got "
+                             f"{params['l']!r}")
+    seg = dict(params, l=length / n)
     c = Circuit(name)
     parts = [c.add(f"s{k}", PiLine(**seg)) for k in range(n)]
     for left, right in zip(parts, parts[1:]):

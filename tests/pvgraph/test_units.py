@@ -183,3 +183,23 @@ def test_the_helpers_agree_with_the_quantity_strings():
     assert to_rpm(rpm(1500)) == pytest.approx(1500.0, rel=1e-15)
     assert cm3_per_rev(28) == pytest.approx(to_unit("28 cm^3/rev", "m^3/rad"), rel=1e-15)
     assert cm3_per_rev(28) == pytest.approx(28e-6 / (2 * math.pi), rel=1e-15)
+
+
+def test_a_bound_broken_by_a_quantity_is_told_in_its_unit():
+    from pvgraph.components import FixedDisplacementPump, ReliefValve
+    with pytest.raises(ParameterError, match=r"p_crack = '1500 bar' \(1.5e\+08 Pa\): must be at "
+                                             r"most 1e\+08 Pa \(1000 bar\)"):
+        ReliefValve(p_crack="1500 bar", A_s="50 mm^2", k=5e4, x_max="2 mm", w="10 mm")
+    with pytest.raises(ParameterError, match=r"V = '-0.5 L' \(-0.0005 m\^3\): must be greater "
+                                             r"than 0 m\^3 \(0 L\)"):
+        VolumeNode(V="-0.5 L")
+    with pytest.raises(ParameterError, match=r"eta_v = 95: .* \(a fraction: 95 % is 0.95"):
+        FixedDisplacementPump(D="28 cm^3/rev", eta_v=95)
+
+
+@pytest.mark.parametrize("text, unit, si", [
+    ("0.5 inch", "m", 0.0127), ("2 inches", "m", 0.0508), ("3 feet", "m", 0.9144),
+    ("1 foot", "m", 0.3048), ("5 USgpm", "m^3/s", 5 * 3.785411784e-3 / 60),
+])
+def test_spelled_out_customary_units(text, unit, si):
+    assert to_unit(text, unit) == pytest.approx(si, rel=1e-14)

@@ -186,3 +186,10 @@ def test_charged_from_empty_the_port_keeps_to_the_gas_law():
                                Q * t, rtol=1e-6)
     # and the hand value of the isotherm at t = 40 s (V_oil = 0.8 L): 5 (p_pre + p_atm) - p_atm
     assert sol.final("dut.port.p") == pytest.approx(5 * (p_pre + P_ATM) - P_ATM, rel=2e-4)
+
+
+def test_segmented_line_names_a_negative_total_length():
+    from pvgraph.components.hydraulic import segmented_line
+    from pvgraph.errors import ParameterError
+    with pytest.raises(ParameterError, match=r"total length l must be positive, got -1.0"):
+        segmented_line(2, l=-1.0, d=0.01)
