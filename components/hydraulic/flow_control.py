@@ -20,7 +20,13 @@ passes both, unregulated. The static characteristic, with ``dp = A.p - B.p``::
 
     q_s = Cd A_s sqrt(2/rho) reg_root(dp, dp_t)          (series orifices, eq. A.4)
     q   = smooth_min(q_s, Q_set; w) - smooth_min(0, Q_set; w)   for dp >= 0,   q = q_s  below
+    q  += Cd A_leak sqrt(2/rho) reg_root(dp, dp_t)       (past the closed compensator)
     A.q = q,  B.q = -q
+
+The leakage ``A_leak`` (1e-12 m^2, a few ppm of the regulated flow) keeps the flow rising,
+however little, with the pressure: a flow source feeding more than ``Q_set`` then gives an
+absurdly high but finite steady pressure, which steady_state and simulate name, as for any
+source into a closed valve, rather than no solution at all.
 
 ``smooth_min`` rounds the knee within ``w = 0.02 Q_set``; the constant ``smooth_min(0, Q_set;
 w)`` (-1e-4 Q_set) makes the branches meet at dp = 0. The compensator's own dynamics (a fraction of a millisecond) are neglected.
@@ -81,6 +87,8 @@ class FlowControlValveParams(Params):
     rho: float = rho_field()
     dp_t: float = Field(1e3, gt=0.0, le=1e6,
                         description="Laminar-turbulent transition pressure drop [Pa]")
+    A_leak: float = Field(1e-12, gt=0.0, le=1e-6,
+                          description="Leakage area past the closed compensator [m^2]")
 
     @property
     def Q_set(self) -> float:
@@ -105,6 +113,7 @@ class FlowControlValve(Component):
         q_s = orifice_flow(p.Cd, p.A_series, dp, p.rho, p.dp_t)
         w = 0.02 * p.Q_set
         offset = smooth_min(0.0, p.Q_set, w)        # makes both branches 0 at dp = 0
-        q = v.observe("q", E.where(dp > 0.0, smooth_min(q_s, p.Q_set, w) - offset, q_s),
+        leak = orifice_flow(p.Cd, p.A_leak, dp, p.rho, p.dp_t)
+        q = v.observe("q", E.where(dp > 0.0, smooth_min(q_s, p.Q_set, w) - offset, q_s) + leak,
                       "m^3/s", "flow A -> B")
         return [v.A.q - q, v.A.q + v.B.q]

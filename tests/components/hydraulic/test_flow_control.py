@@ -6,6 +6,7 @@ from scipy.optimize import brentq
 
 from pvgraph.components.hydraulic import FlowControlValve, PressureSource, ShuttleValve, Tank
 from hydraulic_helpers import fixed_observed, jacobian_fd_error, value
+from pvgraph.circuit import Circuit
 from pvgraph.laws import orifice_flow
 from pvgraph.testing import Flow, Pressure, bench_circuit
 from pvgraph.units import bar, lpm, mm2
@@ -74,8 +75,9 @@ def test_flow_control_below_its_setting_is_two_orifices_in_series_and_free_in_re
     A_eq = 1.0 / np.sqrt(1 / FCV["A_comp"] ** 2 + 1 / FCV["A_meter"] ** 2)
     q_series = orifice_flow(CD, A_eq, bar(1), RHO, 1e3)
     assert _fcv_flow(bar(1), 0.0) == pytest.approx(q_series, rel=2e-3)
-    assert _fcv_flow(0.0, bar(30)) == pytest.approx(orifice_flow(CD, A_eq, -bar(30), RHO, 1e3),
-                                                    rel=1e-12)
+    assert _fcv_flow(0.0, bar(30)) == pytest.approx(orifice_flow(CD, A_eq, -bar(30), RHO, 1e3)
+                                                    + orifice_flow(CD, 1e-12, -bar(30), RHO, 1e3),
+                                                    rel=1e-12)   # + the compensator's leakage
     dps = np.linspace(-bar(1), bar(30), 200)
     qs = [_fcv_flow(d, 0.0) if d > 0 else _fcv_flow(0.0, -d) for d in dps]
     assert np.all(np.diff(qs) > 0.0)           # monotone, continuous through dp = 0
@@ -85,3 +87,24 @@ def test_flow_control_jacobian():
     system = bench_circuit(FlowControlValve(**FCV), A=Pressure(bar(2)),   # at the knee
                            B=Flow(-lpm(1))).compile()
     assert jacobian_fd_error(system) < 1e-6
+
+
+def test_flow_source_above_the_setting_gives_an_absurd_pressure_that_is_named():
+    """20 L/min into a valve regulated to 4.63 L/min: only the closed compensator's leakage can
+    take the rest, at a pressure no circuit holds: steady_state says so, naming the node."""
+    import warnings
+
+    from pvgraph.analysis import steady_state
+    from pvgraph.components.hydraulic import FlowSource
+    from pvgraph.errors import PlausibilityWarning
+    c = Circuit("fcv")
+    c.add("src", FlowSource(Q=lpm(20)))
+    c.add("fcv", FlowControlValve(A_meter=mm2(3), A_comp=mm2(12), dp_c=bar(8)))
+    c.add("tank", Tank())
+    c.connect("src.port", "fcv.A")
+    c.connect("fcv.B", "tank.port")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PlausibilityWarning)
+        with pytest.raises(PlausibilityWarning, match=r"implausible steady pressure .* "
+                                                      r"src.port.p|fcv.A.p"):
+            steady_state(c.compile())
