@@ -646,6 +646,13 @@ class IDAIntegrator:
         if weighted is not None:
             culprits = dominant_names(weighted, self.var_names)
             text += f"; {lead} {', '.join(repr(c) for c in culprits)}"
+            if "error test" in what and self._reads_no_rate(int(np.nanargmax(np.where(
+                    np.isfinite(weighted), np.abs(weighted), np.inf)))):
+                text += (f". {culprits[0]!r} is algebraic (no equation reads its rate): it "
+                         f"jumps here (an input that switches at this time, a step or the "
+                         f"corner of a table), or the DAE's index is above one. Make the "
+                         f"switch an event, or leave the algebraic variables out of the error "
+                         f"test (suppress_alg=True with algebraic=[...])")
         elif self._fail is not None:
             return self._raise_newton(self._fail[0], 0, t, h, what)
         else:
@@ -653,6 +660,19 @@ class IDAIntegrator:
             text += ("; the step size is controlled by the local error of "
                      + ", ".join(map(repr, culprits)))
         raise SolverError(text + ".", t=t, h=h, culprits=culprits)
+
+    def _reads_no_rate(self, j) -> bool:
+        """True if the residual does not change with y'[j] at the last accepted point (an
+        algebraic variable), by one difference; False where that cannot be told."""
+        try:
+            y = np.array(self.yy, dtype=float)
+            yp = np.array(self.yp, dtype=float)
+            r0 = np.asarray(self.fun(self.tn, y, yp), dtype=float)
+            yp[j] += 1e-3 * max(abs(yp[j]), 1.0)
+            r1 = np.asarray(self.fun(self.tn, y, yp), dtype=float)
+        except Exception:       # noqa: BLE001  (only a hint: the failure is reported anyway)
+            return False
+        return bool(np.all(np.isfinite(r0)) and np.array_equal(r0, r1))
 
     def _raise_newton(self, status, ncf, t, h, what=None):
         kind, data = self._fail if self._fail is not None else (status, None)

@@ -229,6 +229,17 @@ def _raise_singular(info, mode, cy, t0, var_names, m=None):
     def label(j):
         name = var_names[j] if var_names is not None else f"y[{j}]"
         return f"{'y' if cy[j] else 'y' + chr(39)} of {name!r}"
+    if m is not None:
+        from .ida import _nonfinite_entries
+        bad = _nonfinite_entries(m)
+        if bad is not None:
+            rows, cols = bad
+            raise InitializationError(
+                f"consistent initialisation ({mode!r}) at t = {t0:.9g}: the Jacobian is not "
+                f"finite (NaN or inf) in equation(s) {rows[:5]}, column(s) of "
+                f"{', '.join(label(j) for j in cols[:5])}: a derivative is undefined at the "
+                f"start (a square root or power at zero, a division by zero), or the given "
+                f"jac returns NaN there.")
     null = _null_columns(m)
     if null:
         raise InitializationError(

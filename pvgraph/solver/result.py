@@ -47,7 +47,9 @@ class DenseOutput:
 
     A scalar ``t`` gives an array of shape (n,); an array of m times gives (m, n), one row
     per time, like ``DAEResult.y``. ``sol.derivative(t)`` gives y' the same way. At an event
-    with a state reset the value after the reset is returned.
+    with a state reset the value after the reset is returned. Outside the integrated interval
+    the first or last step's polynomial is extrapolated (as scipy's ``OdeSolution`` does):
+    values there are not the solution's.
     """
 
     def __init__(self, n):

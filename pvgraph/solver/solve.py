@@ -217,6 +217,10 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
     if calc_initial not in ("algebraic", "all", None):
         raise ValueError(f"calc_initial must be 'algebraic', 'all' or None, got {calc_initial!r}")
     alg_mask = _as_mask(algebraic, n)
+    if suppress_alg and algebraic is None:
+        warnings.warn("suppress_alg=True leaves out of the error test the variables named by "
+                      "algebraic=, and none are named: every variable stays in it",
+                      RuntimeWarning, stacklevel=2)
     event_list = normalize_events(events)
     t_eval = check_times(t0, t_end, t_eval, max_step, first_step)
     nonneg = _nonnegative(nonnegative, n, y0, var_names)

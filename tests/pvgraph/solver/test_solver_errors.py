@@ -158,3 +158,30 @@ def test_event_returning_nan_or_several_values_is_named():
     with pytest.raises(TypeError, match=r"event 'g_vec' returned .* \(shape \(2,\)\)"):
         solve_dae(_decay, (0.0, 1.0), [1.0], [-1.0],
                   events=[Event(lambda t, y, yp: np.array([1.0, -1.0]), name="g_vec")])
+
+
+def test_an_algebraic_jump_that_fails_the_error_test_is_explained():
+    """y1' = y2, 0 = y2 - H(t - 1): no step passes the error test across the jump of the
+    algebraic y2 (IDA fails likewise); the message says so and names the cures."""
+    def fun(t, y, yp):
+        return np.array([yp[0] - y[1], y[1] - (1.0 if t >= 1.0 else 0.0)])
+    with pytest.raises(SolverError, match=r"'b' is algebraic \(no equation reads its rate\): "
+                                          r"it jumps here .*suppress_alg=True"):
+        solve_dae(fun, (0.0, 2.0), [0.0, 0.0], [0.0, 0.0], rtol=1e-8, var_names=["a", "b"])
+    sol = solve_dae(fun, (0.0, 2.0), [0.0, 0.0], [0.0, 0.0], rtol=1e-8, algebraic=[1],
+                    suppress_alg=True)
+    assert sol.y[-1, 0] == pytest.approx(1.0, abs=1e-9)
+
+
+def test_suppress_alg_without_algebraic_is_warned_of():
+    with pytest.warns(RuntimeWarning, match="none are named"):
+        solve_dae(_decay, (0.0, 1.0), [1.0], [-1.0], suppress_alg=True)
+
+
+def test_a_non_finite_jacobian_at_the_start_is_named():
+    def jac(t, y, yp, c):
+        return np.array([[c, np.nan], [0.0, 1.0]])
+    with pytest.raises(InitializationError, match=r"Jacobian is not finite \(NaN or inf\) in "
+                                                  r"equation\(s\) \[0\], column\(s\) of .*'b'"):
+        solve_dae(lambda t, y, yp: np.array([yp[0] + y[0], y[1] - 1.0]), (0.0, 1.0),
+                  [1.0, 1.0], [-1.0, 0.0], jac=jac, algebraic=[1], var_names=["a", "b"])
