@@ -12,8 +12,8 @@ from typing import Iterable
 import numpy as np
 
 from .circuit import Circuit
-from .errors import (InitializationError, PlausibilityWarning, PvgraphError, StartValueWarning,
-                     outside_stacklevel)
+from .errors import (InitializationError, PlausibilityWarning, PvgraphError, SolverError,
+                     StartValueWarning, outside_stacklevel)
 from .system import System
 
 __all__ = ["simulate", "Solution"]
@@ -316,6 +316,11 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         from .solver import solve_dae_sundials as solve
     try:
         res = solve(system.residual, (t_start, t_end), y_init, yp_init, **kwargs)
+    except SolverError as exc:
+        hint = _stiff_node_hint(system, exc.culprits)
+        if not hint:
+            raise
+        raise SolverError(f"{exc} {hint}", t=exc.t, h=exc.h, culprits=exc.culprits) from None
     except InitializationError as exc:
         res = None
         start = _algebraic_start(system, exc, y_init, t_start, calc_initial)
@@ -341,6 +346,21 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     _check_starts_kept(sol, given)
     _check_pressures(sol)
     return sol
+
+
+def _stiff_node_hint(system, culprits) -> str:
+    """A sentence for a failed run whose culprits include a pressure with no volume on its
+    node (an algebraic pressure), or "": moving parts meeting there with no compliance
+    between them (a poppet with mass straight on a flow source) make the run stall."""
+    names = list(system.names)
+    bare = [c for c in culprits if c in system.index and system.units[system.index[c]] == "Pa"
+            and system.algebraic[system.index[c]]]
+    if not bare or not any(c not in bare for c in culprits if c in names):
+        return ""
+    return (f"{', '.join(map(repr, bare))} has no volume on its node (an algebraic pressure): "
+            f"the parts meeting there, with mass or dynamics of their own, are joined with no "
+            f"compliance between them. A VolumeNode on that node, even a small one, gives the "
+            f"oil somewhere to go.")
 
 
 def _massless_hint(system) -> str:
