@@ -733,7 +733,30 @@ def cmd_linearize(args) -> int:
                                                       for j, u in enumerate(args.input)}
                                                   for i, n in enumerate(outputs)}})
         print(f"wrote {args.json} (SI)")
+    if args.bode:
+        from .plotting import plot_bode
+        w = _bode_grid(poles)
+        mags, phases, labels = [], [], []
+        for i, n in enumerate(outputs):
+            for j, u in enumerate(args.input):
+                mag, phase = lm.bode(w, i, j)
+                mags.append(mag)
+                phases.append(phase)
+                labels.append(f"{n} / {u} [{system.unit(n) or '-'} per SI unit]")
+        path = plot_bode(w / (2.0 * np.pi), mags, phases, args.bode, labels=labels,
+                         title=f"{target.spec}: linearised at "
+                               f"{', '.join(f'{k} = {v:.4g}' for k, v in u0.items())}")
+        print(f"wrote {path}")
     return 0
+
+
+def _bode_grid(poles) -> np.ndarray:
+    """Angular frequencies [rad/s] for a Bode plot: two decades either side of the poles'
+    natural frequencies (0.1-1000 rad/s where there are none)."""
+    import numpy as np
+    wn = np.abs(poles[np.abs(poles) > 0]) if len(poles) else np.zeros(0)
+    lo, hi = (wn.min() / 100.0, wn.max() * 100.0) if wn.size else (0.1, 1000.0)
+    return np.logspace(np.log10(lo), np.log10(max(hi, 10.0 * lo)), 400)
 
 
 # --------------------------------------------------------------------------------------------

@@ -684,3 +684,27 @@ def test_sweep_over_a_choice_and_a_misspelled_name_with_a_unit(tmp_path, capsys)
     err = capsys.readouterr().err
     assert "unknown parameter 'v.A_mx'; did you mean 'v.A_max'" in err
     assert not (tmp_path / "never").exists()
+
+
+def test_linearize_a_file_target_draws_the_bode_plot(rig_file, tmp_path, capsys, monkeypatch):
+    """--bode on a user's circuit writes the plot of each output over each input, over two
+    decades either side of the poles; the plotted gain at the lowest frequency is the DC
+    gain (the volume and orifice: 1 / G, 220 dB in Pa per m^3/s)."""
+    import pvgraph.plotting as plotting
+    drawn = {}
+    real = plotting.plot_bode
+
+    def spy(freq, mags, phases, path, **kw):
+        drawn.update(freq=freq, mags=mags, labels=kw.get("labels"))
+        return real(freq, mags, phases, path, **kw)
+    monkeypatch.setattr(plotting, "plot_bode", spy)
+    png = tmp_path / "bode.png"
+    assert main(["linearize", f"{rig_file}:build", "--input", "pump.Q", "--output",
+                 "node.port.p", "--bode", str(png)]) == 0
+    assert f"wrote {png}" in capsys.readouterr().out
+    assert png.stat().st_size > 10_000
+    dp_dq = 2.0 * _p_steady() / Q_PUMP        # slope of the orifice law, 1 / G
+    assert drawn["mags"][0][0] == pytest.approx(20 * np.log10(dp_dq), abs=1e-3)
+    pole_hz = dp_dq ** -1 * BETA / V_NODE / (2 * np.pi)
+    assert drawn["freq"][0] < pole_hz / 50 and drawn["freq"][-1] > pole_hz * 50
+    assert drawn["labels"] == ["node.port.p / pump.Q [Pa per SI unit]"]
