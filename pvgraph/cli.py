@@ -750,7 +750,7 @@ def cmd_linearize(args) -> int:
     return 0
 
 
-def _bode_grid(poles) -> np.ndarray:
+def _bode_grid(poles):
     """Angular frequencies [rad/s] for a Bode plot: two decades either side of the poles'
     natural frequencies (0.1-1000 rad/s where there are none)."""
     import numpy as np
