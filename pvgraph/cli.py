@@ -279,7 +279,10 @@ def cmd_simulate(args) -> int:
     width = max(len(n) for n in shown)
     for n in shown:
         print(f"{n:{width}s}  final {_display(sol.final(n), sol.unit(n), args.si)}")
-    print(f"steps {sol.stats.get('nsteps')}, residual evaluations {sol.stats.get('nre')}")
+    if sol.stats.get("nsteps") is None:
+        print("no unknown left to integrate: the equations fix every variable")
+    else:
+        print(f"steps {sol.stats.get('nsteps')}, residual evaluations {sol.stats.get('nre')}")
     if args.csv:
         sol.to_csv(args.csv, shown)
         print(f"wrote {args.csv} (SI units, named in its header)")
@@ -293,7 +296,8 @@ def _default_variables(system, limit: int = 8) -> list[str]:
     """The states, pressures first, when neither the user nor the circuit names any."""
     states = [n for n, d in zip(system.names, system.differential) if d]
     states.sort(key=lambda n: (system.unit(n) != "Pa", n))
-    return (states or list(system.names))[:limit]
+    # a circuit the equations fix entirely has no unknown: show what it fixes
+    return (states or list(system.names) or sorted(system.aliases))[:limit]
 
 
 def _port_description(circuit, name: str) -> str:

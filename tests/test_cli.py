@@ -708,3 +708,25 @@ def test_linearize_a_file_target_draws_the_bode_plot(rig_file, tmp_path, capsys,
     pole_hz = dp_dq ** -1 * BETA / V_NODE / (2 * np.pi)
     assert drawn["freq"][0] < pole_hz / 50 and drawn["freq"][-1] > pole_hz * 50
     assert drawn["labels"] == ["node.port.p / pump.Q [Pa per SI unit]"]
+
+
+def test_a_circuit_the_equations_fix_entirely(tmp_path, capsys):
+    """A flow source straight into tank leaves no unknown: simulate shows the fixed variables,
+    linearize gives no state and the direct gain 1."""
+    path = tmp_path / "dump.py"
+    path.write_text("from pvgraph import Circuit\n"
+                    "from pvgraph.components import FlowSource, Tank\n"
+                    "def build():\n"
+                    "    c = Circuit('dump')\n"
+                    "    c.add('pump', FlowSource(Q='10 L/min'))\n"
+                    "    c.add('tank', Tank())\n"
+                    "    c.connect('pump.port', 'tank.port')\n"
+                    "    return c\n")
+    assert main(["simulate", f"{path}:build", "--t-end", "1"]) == 0
+    out = capsys.readouterr().out
+    assert _final_values(out)["tank.port.q"] == (10.0, "L/min")
+    assert "no unknown left to integrate" in out
+    assert main(["linearize", f"{path}:build", "--input", "pump.Q", "--output",
+                 "tank.port.q"]) == 0
+    out = capsys.readouterr().out
+    assert "0 states" in out and "d tank.port.q / d pump.Q: 1" in out

@@ -299,6 +299,8 @@ class _Scaled:
 
     def norm(self, y, yp=None):
         f = self.F(y, yp)
+        if not f.size:
+            return 0.0
         return float(np.max(np.abs(f))) if np.all(np.isfinite(f)) else np.inf
 
 
