@@ -177,6 +177,31 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
     ----------
     .. [1] A. C. Hindmarsh et al., "User Documentation for IDA", SUNDIALS.
     """
+    t0, t_end, y0, yp0, rtol, atol, var_names = check_arguments(
+        t_span, y0, yp0, rtol, atol, max_steps, var_names)
+    n = y0.size
+    if calc_initial not in ("algebraic", "all", None):
+        raise ValueError(f"calc_initial must be 'algebraic', 'all' or None, got {calc_initial!r}")
+    alg_mask = _as_mask(algebraic, n)
+    if suppress_alg and algebraic is None:
+        warnings.warn("suppress_alg=True leaves out of the error test the variables named by "
+                      "algebraic=, and none are named: every variable stays in it",
+                      RuntimeWarning, stacklevel=2)
+    event_list = normalize_events(events)
+    t_eval = check_times(t0, t_end, t_eval, max_step, first_step)
+    nonneg = _nonnegative(nonnegative, n, y0, var_names)
+
+    with np.errstate(all="ignore"):
+        return _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask,
+                          algebraic is not None, bool(suppress_alg), jac, jac_sparsity, event_list, t_eval,
+                          max_step, first_step, calc_initial, int(max_order), int(max_steps),
+                          var_names, dense_output, no_growth_after_failure, nonneg,
+                          newton_iterate_retry, c_step, linear_solver)
+
+
+def check_arguments(t_span, y0, yp0, rtol, atol, max_steps, var_names):
+    """The arguments ``solve_dae`` and ``solve_dae_sundials`` share, checked and converted:
+    ``(t0, t_end, y0, yp0, rtol, atol, var_names)``; a bad one raises naming it."""
     try:
         t0, t_end = (float(t) for t in t_span)
     except (TypeError, ValueError):
@@ -199,7 +224,7 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
         # below this the error test asks for digits the arithmetic does not have: the steps
         # shrink to rounding (scipy's solvers raise rtol to the same floor)
         warnings.warn(f"rtol = {rtol:g} is below {RTOL_MIN:g} (100 machine epsilons); using "
-                      f"{RTOL_MIN:g}", RuntimeWarning, stacklevel=2)
+                      f"{RTOL_MIN:g}", RuntimeWarning, stacklevel=3)
         rtol = RTOL_MIN
     atol = atol_vector(atol, n)
     bad = np.flatnonzero(~(atol > 0.0) | ~np.isfinite(atol))
@@ -214,23 +239,7 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
         var_names = [str(v) for v in var_names]
         if len(var_names) != n:
             raise ValueError(f"var_names has {len(var_names)} names for {n} variables")
-    if calc_initial not in ("algebraic", "all", None):
-        raise ValueError(f"calc_initial must be 'algebraic', 'all' or None, got {calc_initial!r}")
-    alg_mask = _as_mask(algebraic, n)
-    if suppress_alg and algebraic is None:
-        warnings.warn("suppress_alg=True leaves out of the error test the variables named by "
-                      "algebraic=, and none are named: every variable stays in it",
-                      RuntimeWarning, stacklevel=2)
-    event_list = normalize_events(events)
-    t_eval = check_times(t0, t_end, t_eval, max_step, first_step)
-    nonneg = _nonnegative(nonnegative, n, y0, var_names)
-
-    with np.errstate(all="ignore"):
-        return _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask,
-                          algebraic is not None, bool(suppress_alg), jac, jac_sparsity, event_list, t_eval,
-                          max_step, first_step, calc_initial, int(max_order), int(max_steps),
-                          var_names, dense_output, no_growth_after_failure, nonneg,
-                          newton_iterate_retry, c_step, linear_solver)
+    return t0, t_end, y0, yp0, rtol, atol, var_names
 
 
 RTOL_MIN = 100.0 * np.finfo(float).eps   # smallest rtol taken (scipy's floor too)

@@ -45,8 +45,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from pvgraph.errors import InitializationError, SolverError
-from pvgraph.solver.events import (EventTracker, atol_vector, check_times, normalize_events,
-                                   stopping_event)
+from pvgraph.solver.events import EventTracker, check_times, normalize_events, stopping_event
 from pvgraph.solver.ida import dominant_names, initial_step
 from pvgraph.solver.initial import start_values
 from pvgraph.solver.linalg import SPARSE_MIN_N, JacobianEvaluator
@@ -129,28 +128,19 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
     .. [2] scikit-sundae, https://github.com/NatLabRockies/scikit-sundae
     """
     sksundae = _import_sksundae()
-    t0, t_end = float(t_span[0]), float(t_span[1])
-    if not (np.isfinite(t0) and np.isfinite(t_end) and t_end > t0):
-        raise ValueError(f"t_span must be finite and increasing, got {t_span!r}")
-    y = np.array(y0, dtype=float).ravel()
-    yp = np.array(yp0, dtype=float).ravel()
+    from .solve import check_arguments
+    t0, t_end, y, yp, rtol, atol_arr, var_names = check_arguments(
+        t_span, y0, yp0, rtol, atol, max_steps, var_names)
     n = y.size
-    if yp.size != n:
-        raise ValueError(f"y0 has {n} entries but yp0 has {yp.size}")
-    if not (np.all(np.isfinite(y)) and np.all(np.isfinite(yp))):
-        raise InitializationError("y0 and yp0 must be finite")
-    rtol = float(rtol)
-    atol_arr = atol_vector(atol, n)
-    if not (rtol > 0.0 and np.all(atol_arr > 0.0)):
-        raise ValueError("rtol and atol must be positive")
+    r0 = np.asarray(residual(t0, y, yp), dtype=float)
+    if r0.shape != (n,):
+        raise ValueError(f"residual returned shape {r0.shape}, expected ({n},)")
     if calc_initial not in ("algebraic", "all", None):
         raise ValueError(f"calc_initial must be 'algebraic', 'all' or None, got {calc_initial!r}")
     alg_mask = np.zeros(n, dtype=bool)
     if algebraic is not None:
         a = np.asarray(algebraic)
         alg_mask[np.flatnonzero(a) if a.dtype == bool else a.astype(int)] = True
-    if var_names is not None:
-        var_names = [str(v) for v in var_names]
     event_list = normalize_events(events)
     t_eval = check_times(t0, t_end, t_eval, max_step, first_step)
 

@@ -74,3 +74,20 @@ def test_sundials_backend_evaluates_events_of_one_vector_function_in_one_call():
                              events=events, rtol=1e-10, atol=1e-12, algebraic=None)
     np.testing.assert_allclose(res.t_events, levels, atol=1e-8)
     assert calls["one"] == 0 and calls["all"] > 0
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"y0": [], "yp0": []}, "y0 is empty"),
+    ({"t_span": (0.0, 1.0, 2.0)}, r"t_span must be two numbers"),
+    ({"atol": np.inf}, r"atol must be positive and finite"),
+    ({"max_steps": 0}, "max_steps must be a positive integer"),
+    ({"residual": lambda t, y, yp: np.array([1.0, 2.0])}, r"residual returned shape \(2,\)"),
+])
+def test_sundials_backend_checks_its_arguments_as_the_built_in_one(kwargs, match):
+    pytest.importorskip("sksundae")
+    from pvgraph.solver import solve_dae_sundials
+    args = {"residual": lambda t, y, yp: yp + y, "t_span": (0.0, 1.0), "y0": [1.0],
+            "yp0": [-1.0], **kwargs}
+    with pytest.raises(ValueError, match=match):
+        solve_dae_sundials(args.pop("residual"), args.pop("t_span"), args.pop("y0"),
+                           args.pop("yp0"), **args)
