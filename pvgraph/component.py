@@ -503,6 +503,7 @@ class Component:
             if key not in known:
                 raise CircuitError(f"{cls.__name__}: start value for unknown variable {key!r}; "
                                    f"known: {sorted(known)}")
+            self._start[key] = _start_number(cls, key, self._start[key])
 
     # interface the subclass implements -------------------------------------------------------
     def equations(self, v: Symbols, p: Params) -> list:
@@ -592,8 +593,36 @@ def _unknown_port_message(owner, name, ports) -> str:
             f"ports are {sorted(ports)}.{hint}")
 
 
+#: the unit engineers usually write a quantity of each SI unit in (for the hint of a bound)
+_USUAL = {"Pa": "bar", "m^3/s": "L/min", "m^2": "mm^2", "m^3": "L", "m": "mm",
+          "m^3/rad": "cm^3/rev", "rad/s": "rpm"}
+
 _BOUNDS = {"greater_than": ("gt", "greater than"), "greater_than_equal": ("ge", "at least"),
            "less_than": ("lt", "less than"), "less_than_equal": ("le", "at most")}
+
+
+def _start_number(cls, key: str, value) -> float:
+    """A start value override as an SI float: a number, or a quantity with a unit
+    (``"50 bar"``) converted to the variable's unit; anything else is named."""
+    from .units import to_unit
+    if key in cls.variables:
+        unit = cls.variables[key].unit
+    else:
+        port = cls.ports[key.split(".")[0]]
+        unit = port.domain.across_unit if port.domain is not SIGNAL else ""
+    what = f"{cls.__name__} start value {key!r}"
+    if isinstance(value, bool):
+        raise ParameterError(f"{what} = {value!r}: give a number")
+    try:
+        number = float(to_unit(value, unit or "1", what))
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, ParameterError):
+            raise
+        raise ParameterError(f"{what} = {value!r}: give a number, or one with a unit "
+                             f"[{unit or '-'}]") from None
+    if not math.isfinite(number):
+        raise ParameterError(f"{what} = {value!r} is not finite")
+    return number
 
 
 def _describe_validation(where: str, exc: ValidationError, fields=(), given=None,
@@ -613,9 +642,19 @@ def _describe_validation(where: str, exc: ValidationError, fields=(), given=None
             msg = err["msg"].removeprefix("Value error, ")
             bound = _bound_in_units(err, loc, given, model)
             value = err.get("input")
-            if err["type"] == "less_than_equal" and (err.get("ctx") or {}).get("le") == 1 and \
+            unit = _field_unit(model, loc)[1] if model is not None and \
+                loc in model.model_fields else None
+            limit = (err.get("ctx") or {}).get("le")
+            if err["type"] == "less_than_equal" and limit == 1 and unit == "-" and \
                     isinstance(value, (int, float)) and 1 < value <= 100:
                 msg += f" (a fraction: {value:g} % is {value / 100:g}, or write '{value:g} %')"
+            elif err["type"] in _BOUNDS and unit and unit != "-" and \
+                    isinstance(value, (int, float)) and not isinstance(value, bool):
+                msg += f" [{unit}]"
+                if err["type"].startswith("less") and unit in _USUAL:
+                    # too large for SI: most likely meant in the unit engineers write it in
+                    msg += (f": a plain number is in {unit}; give the unit with the number, "
+                            f"e.g. {loc}=\"{value:g} {_USUAL[unit]}\"")
             lines.append(f"  {loc} = {bound or repr(value)}{'' if bound else ': ' + msg}")
     return f"invalid parameters for {where}:\n" + "\n".join(lines)
 

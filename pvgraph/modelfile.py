@@ -82,7 +82,7 @@ class ComponentEntry(BaseModel):
     model_config = ConfigDict(extra="forbid")
     type: str = Field(pattern=r"^[A-Za-z_][\w.]*(:[A-Za-z_]\w*)?$")
     params: dict[str, Any] = {}
-    start: dict[str, float] = {}
+    start: dict[str, float | str] = {}
 
 
 class CircuitEntry(BaseModel):

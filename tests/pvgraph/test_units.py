@@ -203,3 +203,36 @@ def test_a_bound_broken_by_a_quantity_is_told_in_its_unit():
 ])
 def test_spelled_out_customary_units(text, unit, si):
     assert to_unit(text, unit) == pytest.approx(si, rel=1e-14)
+
+
+def test_component_start_values_take_quantities(tmp_path):
+    """start={"port.p": "50 bar"} is 5e6 Pa, for the run, the model file and its export; a
+    quantity of another dimension or a non-number is named at construction."""
+    from pvgraph.modelfile import load, save
+    node = VolumeNode(V="0.5 L", start={"port.p": "50 bar"})
+    assert node._start == {"port.p": 5e6}
+    c = Circuit("start")
+    c.add("node", node)
+    c.add("orifice", Orifice(A="2 mm^2"))
+    c.add("tank", Tank())
+    c.connect("node.port", "orifice.a")
+    c.connect("orifice.b", "tank.port")
+    sol = simulate(c, 1e-9)
+    assert sol["node.port.p"][0] == pytest.approx(5e6, rel=1e-12)
+    path = tmp_path / "start.toml"
+    save(c, path)
+    assert load(path)["node"]._start == {"port.p": 5e6}
+    with pytest.raises(UnitError, match=r"start value 'port.p' = '50 L' is a volume"):
+        VolumeNode(V="0.5 L", start={"port.p": "50 L"})
+    with pytest.raises(ParameterError, match=r"start value 'port.p' = \[1\]: give a number"):
+        VolumeNode(V="0.5 L", start={"port.p": [1]})
+
+
+def test_a_plain_number_too_large_for_si_is_pointed_at_units():
+    with pytest.raises(ParameterError, match=r"Q = 5: .* \[m\^3/s\]: a plain number is in m\^3/s; "
+                                             r"give the unit with the number, e.g. "
+                                             r"Q=\"5 L/min\""):
+        FlowSource(Q=5)
+    with pytest.raises(ParameterError, match=r"V = -1.0: Input should be greater than 0 "
+                                             r"\[m\^3\]$"):
+        VolumeNode(V=-1.0)
