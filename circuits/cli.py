@@ -24,7 +24,7 @@ import sys
 import time
 
 from pvgraph.cli import (_check_outputs, _display, _frequency_response, _noted_case, _progress,
-                         _sweep_cases, _write_json_atomic, run_sweep)
+                         _sweep_cases, _write_json_atomic, output_dir, run_sweep)
 from pvgraph.errors import InitializationError, ParameterError, PvgraphError, SolverError
 from pvgraph.units import to_bar, to_lpm, to_mm
 
@@ -493,7 +493,8 @@ def _scenario_rig(name: str, preset: str = "tuned", law: str = "laminar",
 
 
 def _configure_validate(v) -> None:
-    v.add_argument("--out", default="pvgraph-report", help="output folder (default: %(default)s)")
+    v.add_argument("--out", default="pvgraph-report", type=output_dir,
+                   help="output folder (default: %(default)s)")
     v.add_argument("--json",
                    help="write the comparison records here (default: OUT/validation.json)")
     v.add_argument("--preset", default="tuned", help="parameter preset: tuned (report table 4.14) "

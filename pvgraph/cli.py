@@ -808,6 +808,25 @@ def _output_path(text: str) -> str:
     return text
 
 
+def output_dir(text: str) -> str:
+    """argparse type of an output folder: not a file, and where it can be made (a missing
+    folder is made when the command writes into it), checked before anything runs."""
+    path = os.path.abspath(text)
+    if not text:
+        raise argparse.ArgumentTypeError("give a folder name")
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise argparse.ArgumentTypeError(f"{text!r} is a file; give a folder")
+    parent = path
+    while not os.path.exists(parent):
+        parent = os.path.dirname(parent)
+    if not os.path.isdir(parent):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: cannot make a folder there, {parent!r} is a file")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"{text!r}: {parent!r} is not writable")
+    return text
+
+
 def _add_target(p, help_text="circuit: FILE.py:FUNCTION, MODULE:FUNCTION, a model file or a "
                              "registered name (pvgraph circuits)", optional=False):
     p.add_argument("target", nargs="?" if optional else None, help=help_text)
@@ -834,7 +853,7 @@ def _add_sweep_backend(w) -> None:
     w.add_argument("--scheduler", metavar="ADDRESS",
                    help="Dask scheduler address, e.g. tcp://10.0.0.5:8786 (its workers need "
                         "pvgraph installed); without it --backend dask starts a local cluster")
-    w.add_argument("--out", default="pvgraph-sweep",
+    w.add_argument("--out", default="pvgraph-sweep", type=output_dir,
                    help="output folder: cases.jsonl (each case as it finishes), sweep.csv and "
                         "sweep.json (default: %(default)s)")
     w.add_argument("--resume", action="store_true",
@@ -1001,7 +1020,11 @@ def _run(args, argv) -> int:
         print(f"pvgraph {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:          # an output file that could not be written after all
-        print(f"pvgraph {args.command}: error: {exc.strerror or exc}", file=sys.stderr)
+        text = str(exc) if str(exc).startswith("cannot write") else exc.strerror or str(exc)
+        name = getattr(exc, "filename", None)
+        if name and str(name) not in text:
+            text = f"cannot write {str(name)!r}: {text}"
+        print(f"pvgraph {args.command}: error: {text}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"pvgraph {args.command}: interrupted", file=sys.stderr)

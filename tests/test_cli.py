@@ -730,3 +730,30 @@ def test_a_circuit_the_equations_fix_entirely(tmp_path, capsys):
                  "tank.port.q"]) == 0
     out = capsys.readouterr().out
     assert "0 states" in out and "d tank.port.q / d pump.Q: 1" in out
+
+
+@pytest.mark.parametrize("command", ["sweep", "validate"])
+def test_an_output_folder_that_is_a_file_exits_2_before_anything_runs(command, rig_file,
+                                                                        tmp_path, capsys):
+    (tmp_path / "afile").write_text("a file where a folder is expected")
+    target = [f"{rig_file}:build", "--param", "orifice.A=1e-6"] if command == "sweep" else []
+    for out, message in ((tmp_path / "afile", "is a file; give a folder"),
+                         (tmp_path / "afile" / "sub", "cannot make a folder there")):
+        with pytest.raises(SystemExit) as exc:
+            main([command] + target + ["--out", str(out)])
+        assert exc.value.code == 2
+        err = capsys.readouterr().err
+        assert f"argument --out: '{out}'" in err and message in err
+
+
+def test_an_output_that_cannot_be_written_names_the_file(rig_file, tmp_path, capsys,
+                                                         monkeypatch):
+    """A write that fails after the checks (a device, a full disk) names the file, exit 1."""
+    import pvgraph.plotting as plotting
+    target = str(tmp_path / "g.svg")
+
+    def fail(*args, **kwargs):
+        raise FileNotFoundError(2, "No such file or directory", target)
+    monkeypatch.setattr(plotting, "draw_circuit", fail)
+    assert main(["graph", f"{rig_file}:build", "--out", target]) == 1
+    assert f"cannot write '{target}': No such file or directory" in capsys.readouterr().err
