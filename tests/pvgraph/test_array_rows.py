@@ -174,7 +174,9 @@ def test_an_event_of_an_array_group_fires_as_in_straight_line_code():
     assert switched and switched[0][1] == arrays.mode_names.index("v0.#cavitated")
     assert [t for t, _ in arrays.mode_log] == [t for t, _ in plain.mode_log]
     p0 = ra["v0.port.p"][-1]
-    assert -P_ATM < p0 < -0.9 * P_ATM        # held just above the vapour pressure (absolute ~ 0)
+    # at the vapour pressure (absolute ~ 0), less what the cavity takes at the limit's level
+    # compliance (1.4e-3 /Pa): the pump has drawn some 19 chamber volumes by then
+    assert -1.2 * P_ATM < p0 < -0.9 * P_ATM
     assert abs(p0 - rp["v0.port.p"][-1]) <= 1e-9 * P_ATM
 
 
