@@ -269,12 +269,14 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     if not (math.isfinite(t_end) and t_end > t_start):
         raise PvgraphError(f"t_end ({t_end!r}) must be finite and greater than t_start "
                            f"({t_start!r})")
+    _check_options(options, solver)
+    recompile = options.pop("recompile", True)
     system = target.compile() if isinstance(target, Circuit) else target
     if params is not None:
         from .circuit import parameter_values
         params = parameter_values(params, "simulate: params")
     if params:
-        system = system.with_params(params)
+        system = system.with_params(params, recompile=recompile)
     y_init = _full_vector(system, system.y0 if y0 is None else y0, "y0")
     yp_init = _full_vector(system, system.yp0 if yp0 is None else yp0, "yp0")
     given = {}
@@ -346,6 +348,27 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     _check_starts_kept(sol, given)
     _check_pressures(sol)
     return sol
+
+
+def _check_options(options, solver) -> None:
+    """Refuse an option the chosen solver does not take, with the closest names (the
+    solver would say only that its own function got an unexpected keyword)."""
+    import difflib
+    import inspect
+    if solver == "pvgraph":
+        from .solver import solve_dae as solve
+    else:
+        from .solver import solve_dae_sundials as solve
+    own = {"t_span", "y0", "yp0", "residual", "rtol", "atol", "algebraic", "jac",
+           "jac_sparsity", "events", "t_eval", "max_step", "calc_initial", "var_names"}
+    taken = (set(inspect.signature(solve).parameters) - own) | {"recompile"}
+    for name in options:
+        if name not in taken:
+            close = difflib.get_close_matches(name, sorted(taken | set(
+                inspect.signature(simulate).parameters) - {"options"}), n=3, cutoff=0.6)
+            hint = f" (did you mean {', '.join(map(repr, close))}?)" if close else ""
+            raise PvgraphError(f"simulate: unknown option {name!r} for solver {solver!r}{hint}; "
+                               f"the options it takes: {', '.join(sorted(taken))}")
 
 
 def _stiff_node_hint(system, culprits) -> str:

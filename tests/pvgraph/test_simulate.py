@@ -391,3 +391,21 @@ def test_solution_names_and_paths_of_the_wrong_kind(tmp_path):
     with pytest.raises(TypeError, match="path: a file name"):
         sol.to_csv(None, ["node.port.p"])
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_misspelled_option_is_named_with_the_closest_ones():
+    from pvgraph.errors import PvgraphError
+    c = Circuit("d")
+    c.add("p", FlowSource(Q="10 L/min"))
+    c.add("n", VolumeNode(V="0.5 L"))
+    c.add("o", Orifice(A="2 mm^2"))
+    c.add("t", Tank())
+    c.connect("p.port", "n.port", "o.a")
+    c.connect("o.b", "t.port")
+    with pytest.raises(PvgraphError, match=r"unknown option 'rtoll' for solver 'pvgraph' "
+                                           r"\(did you mean 'rtol'"):
+        simulate(c, 0.1, rtoll=1e-6)
+    # recompile= goes to the runtime parameters, as with_params takes it
+    sol = simulate(c, 1.0, params={"o.A": "3 mm^2"}, recompile=False)
+    assert sol.final("n.port.p") == pytest.approx(870.0 / 2 * (10 / 60e3 / (0.6 * 3e-6)) ** 2,
+                                                  rel=2e-3)
