@@ -42,6 +42,7 @@ import json
 import math
 import os
 import re
+import sys
 import tomllib
 from typing import Any, Iterable, Literal, Union
 
@@ -132,7 +133,16 @@ def _library_classes(modules: Iterable[str] = ()) -> dict[str, type]:
 
 
 def _type_name(cls: type, known: dict[str, type]) -> str:
-    full = f"{cls.__module__}:{cls.__qualname__}"
+    module = cls.__module__
+    if module == "__main__" or module.startswith("_pvgraph_target_") or "<locals>" in \
+            cls.__qualname__:
+        where = getattr(sys.modules.get(module), "__file__", None) or module
+        raise ModelFileError(
+            f"{cls.__qualname__} is defined in {where}, not in a module a model file can name "
+            f"(package.module:Class): a file written now could not be loaded again. Move "
+            f"{cls.__qualname__} into an importable module and load the file with "
+            f"load(path, modules=['that.module']).")
+    full = f"{module}:{cls.__qualname__}"
     short = [k for k, v in known.items() if k.endswith(":" + cls.__qualname__)]
     if short == [full]:
         return cls.__qualname__

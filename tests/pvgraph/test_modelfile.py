@@ -158,3 +158,34 @@ def test_an_unconnected_port_of_a_file_names_the_file_and_the_component_line():
     with pytest.raises(CircuitError, match=rf"demo.toml, line {line} \(components.orifice\): "
                                            rf"port 'orifice.b' \(hydraulic\) is not connected"):
         circuit.compile()
+
+
+def test_a_component_defined_in_a_function_cannot_be_saved_and_says_why(tmp_path):
+    """A model file names types by module; a class no module can give back (defined in a
+    script or a function) is refused, naming it, and no file is written."""
+    from pydantic import Field
+
+    from pvgraph import Component, Hydraulic, Params
+    from pvgraph.components import FlowSource, Tank
+    from pvgraph.modelfile import ModelFileError, save
+
+    class LeakParams(Params):
+        K: float = Field(..., gt=0, description="Leakage coefficient [m^3/(s Pa)]")
+
+    class Leak(Component):
+        Params = LeakParams
+        ports = {"a": Hydraulic("high side"), "b": Hydraulic("low side")}
+
+        def equations(self, v, p):
+            return [v.a.q - p.K * (v.a.p - v.b.p), v.a.q + v.b.q]
+    c = Circuit("leaky")
+    c.add("src", FlowSource(Q="1 L/min"))
+    c.add("leak", Leak(K=1e-11))
+    c.add("t", Tank())
+    c.connect("src.port", "leak.a")
+    c.connect("leak.b", "t.port")
+    path = tmp_path / "leaky.toml"
+    with pytest.raises(ModelFileError, match=r"Leak is defined in .*, not in a module a model "
+                                             r"file can name"):
+        save(c, path)
+    assert not path.exists()
