@@ -381,9 +381,21 @@ def from_dict(data: dict, *, modules: Iterable[str] = (), text: str = "",
     except ValidationError as exc:
         err = _relevant_error(exc.errors(), data)
         loc = tuple(k for k in err["loc"] if k not in ("CircuitEntry", "ComponentEntry"))
-        line = _line_of(text, loc)
+        # a key that is missing is told at its table, not at the next place its name occurs
+        line = _line_of(text, loc[:-1] if err["type"] == "missing" else loc)
         where = source + (f", line {line}" if line else "")
         msg = err["msg"]
+        if err["type"] == "missing" and loc[-1] == "type":
+            msg = (f"no type: give the component's class, e.g. type = \"Orifice\" (or "
+                   f"type = \"Circuit\" for a sub-circuit)")
+        elif err["type"] == "missing":
+            msg = f"{loc[-1]!r} is missing"
+        elif loc and loc[0] == "expose":
+            msg = (f"an exposed port is written {loc[1] if len(loc) > 1 else 'P'} = "
+                   f"{{ port = \"component.port\" }} (and optionally description = "
+                   f"\"...\")")
+        elif err["type"] == "dict_type":
+            msg = "expected a table of name = value pairs (TOML) or an object (JSON)"
         if err["type"] == "extra_forbidden":
             msg = (f"unknown key {loc[-1]!r}; a component holds type, params and start, a "
                    f"sub-circuit type = \"Circuit\", components, connections and expose, the "

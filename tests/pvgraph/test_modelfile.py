@@ -189,3 +189,18 @@ def test_a_component_defined_in_a_function_cannot_be_saved_and_says_why(tmp_path
                                              r"file can name"):
         save(c, path)
     assert not path.exists()
+
+
+@pytest.mark.parametrize("text, message", [
+    ('format = 1\nname = "m"\nconnections = []\n\n[components.tank]\ntype = "Tank"\n\n'
+     '[components.orifice]\nparams = { A = "2 mm^2" }\n\n[components.t2]\ntype = "Tank"\n',
+     r"m.toml, line 8 \(components.orifice.type\): no type: give the component's class"),
+    ('format = 1\nname = "m"\nconnections = []\nexpose = { P = "tank.port" }\n\n'
+     '[components.tank]\ntype = "Tank"\n',
+     r"line 4 \(expose.P\): an exposed port is written P = \{ port = \"component.port\" \}"),
+])
+def test_model_file_mistakes_are_told_at_their_line_in_plain_words(text, message, tmp_path):
+    path = tmp_path / "m.toml"
+    path.write_text(text)
+    with pytest.raises(ModelFileError, match=message):
+        load(path)
