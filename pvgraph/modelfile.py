@@ -386,8 +386,8 @@ def from_dict(data: dict, *, modules: Iterable[str] = (), text: str = "",
         where = source + (f", line {line}" if line else "")
         msg = err["msg"]
         if err["type"] == "missing" and loc[-1] == "type":
-            msg = (f"no type: give the component's class, e.g. type = \"Orifice\" (or "
-                   f"type = \"Circuit\" for a sub-circuit)")
+            msg = ("no type: give the component's class, e.g. type = \"Orifice\" (or "
+                   "type = \"Circuit\" for a sub-circuit)")
         elif err["type"] == "missing":
             msg = f"{loc[-1]!r} is missing"
         elif loc and loc[0] == "expose":
