@@ -121,6 +121,25 @@ def _line_in(tb, source: str | None) -> str | None:
     return found
 
 
+def _import_module_here(name: str):
+    """Import ``name``, also from the working directory: ``pvgraph simulate my_rig:build``
+    finds ./my_rig.py as ``python -m pvgraph.cli`` does (the installed script's path has no
+    working directory in it)."""
+    try:
+        return importlib.import_module(name)
+    except ModuleNotFoundError as exc:
+        here = os.getcwd()
+        if exc.name != name.split(".")[0] or here in sys.path or "" in sys.path:
+            raise
+        sys.path.insert(0, here)
+        try:
+            return importlib.import_module(name)
+        except ModuleNotFoundError as again:
+            if again.name == name.split(".")[0]:
+                sys.path.remove(here)
+            raise
+
+
 def _import_file(path: str):
     if not os.path.isfile(path):
         raise PvgraphError(f"no such file {path!r}")
@@ -162,7 +181,7 @@ def load_target(spec: str, options: dict | None = None) -> Target:
         module = _import_file(module_part)
     elif colon and module_part and not (len(module_part) == 1 and os.sep == "\\"):
         try:
-            module = importlib.import_module(module_part)
+            module = _import_module_here(module_part)
         except ImportError as exc:
             raise PvgraphError(f"cannot import module {module_part!r} of target {spec!r}: "
                                f"{exc}") from None

@@ -757,3 +757,17 @@ def test_an_output_that_cannot_be_written_names_the_file(rig_file, tmp_path, cap
     monkeypatch.setattr(plotting, "draw_circuit", fail)
     assert main(["graph", f"{rig_file}:build", "--out", target]) == 1
     assert f"cannot write '{target}': No such file or directory" in capsys.readouterr().err
+
+
+def test_a_module_target_is_found_in_the_working_directory(rig_file, tmp_path, monkeypatch,
+                                                          capsys):
+    """The installed pvgraph script has no working directory on its path; MODULE:FUNCTION
+    still finds ./my_rig.py, as python -m pvgraph.cli does."""
+    import os
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "path", [p for p in sys.path
+                                      if p not in ("", ".", str(tmp_path), os.getcwd())])
+    monkeypatch.delitem(sys.modules, "my_rig", raising=False)
+    assert main(["simulate", "my_rig:build", "--t-end", "1", "--var", "node.port.p"]) == 0
+    p, _ = _final_values(capsys.readouterr().out)["node.port.p"]
+    assert p == pytest.approx(_p_steady() / 1e5, rel=2e-3)
