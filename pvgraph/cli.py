@@ -816,14 +816,7 @@ def _output_path(text: str) -> str:
     path = os.path.abspath(text)
     if not text or os.path.isdir(path):
         raise argparse.ArgumentTypeError(f"{text!r} is a directory; give a file name")
-    parent = os.path.dirname(path)
-    while not os.path.exists(parent):
-        parent = os.path.dirname(parent)
-    if not os.path.isdir(parent):
-        raise argparse.ArgumentTypeError(
-            f"{text!r}: cannot make a directory there, {parent!r} is a file")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise argparse.ArgumentTypeError(f"{text!r}: the directory {parent!r} is not writable")
+    _can_make(text, os.path.dirname(path), "a directory")
     return text
 
 
@@ -835,15 +828,20 @@ def output_dir(text: str) -> str:
         raise argparse.ArgumentTypeError("give a folder name")
     if os.path.exists(path) and not os.path.isdir(path):
         raise argparse.ArgumentTypeError(f"{text!r} is a file; give a folder")
+    _can_make(text, path, "a folder")
+    return text
+
+
+def _can_make(text: str, path: str, what: str) -> None:
+    """The nearest existing ancestor of ``path`` (itself included) is a writable folder."""
     parent = path
     while not os.path.exists(parent):
         parent = os.path.dirname(parent)
     if not os.path.isdir(parent):
         raise argparse.ArgumentTypeError(
-            f"{text!r}: cannot make a folder there, {parent!r} is a file")
+            f"{text!r}: cannot make {what} there, {parent!r} is a file")
     if not os.access(parent, os.W_OK | os.X_OK):
-        raise argparse.ArgumentTypeError(f"{text!r}: {parent!r} is not writable")
-    return text
+        raise argparse.ArgumentTypeError(f"{text!r}: the directory {parent!r} is not writable")
 
 
 def _add_target(p, help_text="circuit: FILE.py:FUNCTION, MODULE:FUNCTION, a model file or a "
