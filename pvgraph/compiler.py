@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import gc
 import itertools
+import operator
 import warnings
 import zlib
 from dataclasses import dataclass
@@ -484,7 +485,7 @@ def _connection_equations(root, leaves, infos, keys=None) -> list[_Equation]:
     shorted = []    # (component path, its ports on one node)
     for group in groups:
         ports = [attrs[k] for k in group if attrs[k][3]]
-        ports.sort(key=lambda a: a[0])
+        ports.sort(key=operator.itemgetter(0))
         if len(ports) > 1:
             _note_shorted(ports, shorted)
         labels = [a[0] for a in ports]
@@ -522,19 +523,23 @@ def _connection_equations(root, leaves, infos, keys=None) -> list[_Equation]:
                 f"another port, or close it explicitly with "
                 f"{_CLOSURE.get(domain.name, 'a component that fixes it')}.")
         node_label = _node_label(labels)
-        across = [E.Expr("sym", (), f"{lab}.{domain.across}") for lab in labels]
-        through = [E.Expr("sym", (), f"{lab}.{domain.through}") for lab in labels]
-        first = across[0]
-        for lab, a in zip(labels[1:], across[1:]):
-            row = a - first
+        # the rows are built as ``a - first`` and ``q1 + q2 + ...`` would fold them: leaves of
+        # distinct names fold nothing
+        suffix = "." + domain.across
+        first = E.Expr("sym", (), labels[0] + suffix)
+        for lab in labels[1:]:
+            a = E.Expr("sym", (), lab + suffix)
+            row = E.Expr("sub", (a, first))
             equations.append(_Equation(row, node_label,
                                        f"{node_label}: {domain.across} equal at {lab}"))
             if keys is not None:    # ``a - b`` of two distinct names
                 keys.append((("connection", "sub"), (a.value, first.value), [a, first, row]))
+        suffix = "." + domain.through
+        through = [E.Expr("sym", (), lab + suffix) for lab in labels]
         total = through[0]
         nodes = [total]
         for q in through[1:]:
-            total = total + q
+            total = E.Expr("add", (total, q))
             nodes += (q, total)
         equations.append(_Equation(total, node_label,
                                    f"{node_label}: sum of {domain.through} is zero"))
@@ -1080,7 +1085,11 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
                 return got
         while target in subs:
             c2, t2, o2 = subs[target]
-            coef, target, off = _kmul(coef, c2), t2, _kadd(_kmul(coef, o2), off)
+            if coef.__class__ is float and c2.__class__ is float and \
+                    o2.__class__ is float and off.__class__ is float:
+                coef, target, off = coef * c2, t2, coef * o2 + off   # as _kmul, _kadd do
+            else:
+                coef, target, off = _kmul(coef, c2), t2, _kadd(_kmul(coef, o2), off)
             if t2 is None:
                 walked[name] = got = (0.0, None, off)
                 return got
@@ -1194,10 +1203,12 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
                 keep.append(item)
                 continue
             item[4] = False
-            if not exact and not plain(syms, ders):   # a superset: the exact names decide
+            flat = plain(syms, ders)
+            if not exact and not flat:   # a superset: the exact names decide
                 syms, ders = read(expr)
                 item[2], item[3], item[5] = syms, ders, True
-            form = affine(expr) if plain(syms, ders) else None
+                flat = plain(syms, ders)
+            form = affine(expr) if flat else None
             if form is None:
                 keep.append(item)
                 continue
@@ -1240,7 +1251,10 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
                     keep.append(item)
                     continue
                 # eliminate u: u = -(b*w + k)/a
-                coef, off = _kdiv(_kneg(b), a), _kdiv(_kneg(k), a)
+                if b.__class__ is float and k.__class__ is float:
+                    coef, off = -b / a, -k / a      # as _kneg, _kdiv do
+                else:
+                    coef, off = _kdiv(_kneg(b), a), _kdiv(_kneg(k), a)
                 subs[u] = (coef, w, off)
                 why[u] = (eq.label, w)
                 _set_start(infos, u, w, num(coef), num(off))
@@ -1255,7 +1269,7 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
         if not (eliminated.isdisjoint(syms) and eliminated.isdisjoint(ders)):
             expr, syms, ders, still = substituted(expr, syms, ders)
             exact = exact and still
-        out.append(_Equation(expr, eq.origin, eq.label))
+        out.append(eq if expr is eq.expr else _Equation(expr, eq.origin, eq.label))
         if incidence is not None:
             incidence.append((syms, ders) if exact else read(expr))
     if prov is not None:
@@ -1391,9 +1405,8 @@ def check_structure(names, eq_labels, inc_y, inc_yp, differential):
     pencil = _incidence(n_eq, n_var, np.concatenate([rows_y, rows_yp]),
                         np.concatenate([cols_y, cols_yp]))
     match_eq = maximum_bipartite_matching(pencil, perm_type="column")
-    unmatched_eq = [i for i in range(n_eq) if match_eq[i] < 0]
-    matched_vars = {int(j) for j in match_eq if j >= 0}
-    unmatched_var = [j for j in range(n_var) if j not in matched_vars]
+    unmatched_eq = np.flatnonzero(match_eq < 0).tolist()
+    unmatched_var = _unmatched(match_eq, n_var)
     if n_eq != n_var or unmatched_eq or unmatched_var:
         head = (f"the system has {n_eq} equations for {n_var} unknowns"
                 if n_eq != n_var else
@@ -1421,10 +1434,9 @@ def check_structure(names, eq_labels, inc_y, inc_yp, differential):
     solve_for = _incidence(n_eq, n_var, np.concatenate([rows_y[alg], rows_yp[dif]]),
                            np.concatenate([cols_y[alg], cols_yp[dif]]))
     match1 = maximum_bipartite_matching(solve_for, perm_type="column")
-    bad_eq = [i for i in range(n_eq) if match1[i] < 0]
+    bad_eq = np.flatnonzero(match1 < 0).tolist()
     if bad_eq:
-        matched = {int(j) for j in match1 if j >= 0}
-        bad_var = [j for j in range(n_var) if j not in matched]
+        bad_var = _unmatched(match1, n_var)
         raise StructureError(
             "the DAE has index above one: these equations constrain differential variables "
             "algebraically: " + _list([eq_labels[i] for i in bad_eq]) +
@@ -1432,6 +1444,14 @@ def check_structure(names, eq_labels, inc_y, inc_yp, differential):
             ". Typical causes: an incompressible node between two volumes or masses, a "
             "position source driving a mass, a flow source into a closed volume-free node. Add "
             "compliance (a VolumeNode, a spring) or remove the rigid constraint.")
+
+
+def _unmatched(match, n_var) -> list:
+    """The variables (in order) no equation of the matching ``match`` (a variable per
+    equation, -1 for none) is matched to."""
+    matched = np.zeros(n_var, dtype=bool)
+    matched[match[match >= 0]] = True
+    return np.flatnonzero(~matched).tolist()
 
 
 def _flat(lists):

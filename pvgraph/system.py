@@ -1228,12 +1228,15 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     lookup = {"y": index, "yp": index, "param": pindex, "mode": mode_index}
 
     def shapes_of(rows):
-        """:func:`shape_of` of each row; the kinds of the names of the rows of one
-        provenance key are looked up together, and rows of one key and kinds share one
-        shape and one slot list."""
+        """``(shapes, blocks)``: :func:`shape_of` of each row, but the rows of one provenance
+        key whose names are of one kind per place share one shape and are given together, as
+        blocks ``(shape, positions, payloads)`` (``payloads[kind]``: the payload of each slot
+        of that kind, a row per position; their place in ``shapes`` holds ``IN_BLOCK``). The
+        kinds of the names of a key's rows are looked up together."""
         if prov_rows is None:
-            return [shape_of(r) for r in rows]
+            return [shape_of(r) for r in rows], []
         out = [None] * len(rows)
+        blocks = []
         by_key: dict = {}     # (key, number of names) -> (positions, names of each row)
         for i, row in enumerate(rows):
             p = prov_rows.get(id(row))
@@ -1254,20 +1257,19 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
             alike = (kinds == kinds[0]).all(axis=1)
             if not np.isin(kinds[0], (0, 1, 2, 4)).all():
                 alike[:] = False    # a name of several kinds: row by row
-            shape = slots = block = None
-            for j, (i, names, same) in enumerate(zip(at, names_of, alike.tolist())):
-                if not same:
-                    out[i] = shape_of(rows[i])
-                    continue
-                if j == 0:      # the first row computes (or finds) the shape
-                    out[i] = shape_of(rows[i])
-                    shape, slots = shape_cache[key, tuple(kinds[0].tolist())]
-                    if shape is not None:   # every row's slot payloads, as arrays
-                        block = {kind: codes[:, places] >> 3 for kind, places in slots.items()}
-                    continue
-                out[i] = None if shape is None else \
-                    (shape, _Slots(names, slots, lookup, block, j))
-        return out
+            if alike[0]:    # the first row computes (or finds) the shape of the alike rows
+                shape_of(rows[at[0]])
+                shape, slots = shape_cache[key, tuple(kinds[0].tolist())]
+                if shape is not None:   # their slot payloads, as arrays
+                    mine = np.asarray(at, dtype=np.int64)[alike]
+                    got = codes[alike]
+                    blocks.append((shape, mine, {kind: got[:, places] >> 3
+                                                 for kind, places in slots.items()}))
+                    for i in mine.tolist():
+                        out[i] = IN_BLOCK
+            for j in np.flatnonzero(~alike).tolist():
+                out[at[j]] = shape_of(rows[at[j]])
+        return out, blocks
 
     groups, scalar_rows = _array_groups(raw, array_rows, compiled_leaf, shapes_of=shapes_of)
     if groups:
@@ -1395,15 +1397,13 @@ class _ArrayRows:
     """Residual rows of one shape: one template, evaluated over arrays of their instances.
 
     ``rows`` are the row numbers; ``index[kind][s]`` is the array of payloads (unknown,
-    parameter or mode numbers) slot ``s`` of that kind takes in each instance.
+    parameter or mode numbers) slot ``s`` of that kind takes in each instance. Built from
+    the group's members (see :func:`_slot_arrays`) and the row ``expr`` of its first
+    member.
     """
 
-    def __init__(self, rows, leaves_per_row, expr, leaf_of=None):
-        self.rows = np.asarray(rows, dtype=np.int64)
-        self.index = _slot_arrays(leaves_per_row)
-        first = leaves_per_row[0]
-        if first.__class__ is _Slots:
-            first = {kind: first[kind] for kind in codegen.SLOT_LEAVES}
+    def __init__(self, members, expr, leaf_of=None):
+        self.rows, self.index, first = _slot_arrays(members)
         self.template = codegen.template(expr, first, leaf_of)
         self.label = ""     # a row of the group, for messages
         self.nderived = 0
@@ -1501,42 +1501,57 @@ class _ArrayRows:
 
 class _Slots:
     """The payloads of a row's slots, per kind, as the names of its provenance key's places:
-    ``slots[kind]`` lists the place of each slot's name, ``lookup[kind]`` numbers names.
-    ``block[kind][j]``, where given, holds them already (row ``j`` of a block of rows of one
-    provenance key)."""
+    ``slots[kind]`` lists the place of each slot's name, ``lookup[kind]`` numbers names."""
 
-    __slots__ = ("names", "slots", "lookup", "block", "j")
+    __slots__ = ("names", "slots", "lookup")
 
-    def __init__(self, names, slots, lookup, block=None, j=0):
+    def __init__(self, names, slots, lookup):
         self.names = names
         self.slots = slots
         self.lookup = lookup
-        self.block = block
-        self.j = j
 
     def __getitem__(self, kind):
         number, names = self.lookup[kind], self.names
         return [number[names[c]] for c in self.slots[kind]]
 
 
-def _slot_arrays(leaves_per_row) -> dict:
-    """``{kind: [payload of slot s in each row (an array), ...]}`` of rows of one shape; the
-    rows given as :class:`_Slots` are looked up in bulk, per provenance key."""
-    n = len(leaves_per_row)
-    first = leaves_per_row[0]
+#: the place in :func:`build_system`'s row shapes of a row given in a block
+IN_BLOCK = object()
+
+
+def _slot_arrays(members):
+    """``(rows, index, first)`` of the members of a group of rows of one shape: the row
+    numbers in order, ``{kind: [payload of slot s in each row (an array), ...]}`` and the
+    payloads of the first row (``{kind: list}``). A member is a row ``(number, leaves)``
+    (leaves as :func:`pvgraph.codegen.row_shape` gives them, or :class:`_Slots`, looked up in
+    bulk per provenance key) or a block ``(numbers, payloads)`` (see ``shapes_of`` in
+    :func:`build_system`)."""
+    single = [(i, lv) for i, lv in members if i.__class__ is int]
+    parts = [at for at, _ in members if at.__class__ is not int]
+    rows = np.sort(np.concatenate([np.fromiter((i for i, _ in single), dtype=np.int64,
+                                               count=len(single))] + parts))
+    head = int(rows[0])
+    first = next((lv for i, lv in single if i == head), None)
+    if first is None:
+        first = next({kind: p[0].tolist() for kind, p in payloads.items()}
+                     for at, payloads in members if at.__class__ is not int and at[0] == head)
+    elif first.__class__ is _Slots:
+        first = {kind: first[kind] for kind in codegen.SLOT_LEAVES}
+    n = len(rows)
     out = {kind: [np.empty(n, dtype=np.int64) for _ in range(len(first[kind]))]
            for kind in codegen.SLOT_LEAVES}
+    for at, payloads in members:
+        if at.__class__ is int:
+            continue
+        pos = np.searchsorted(rows, at)
+        for kind in codegen.SLOT_LEAVES:
+            got = payloads[kind]
+            for s in range(got.shape[1]):
+                out[kind][s][pos] = got[:, s]
     batches: dict[int, tuple] = {}
-    blocks: dict[int, tuple] = {}
-    for k, lv in enumerate(leaves_per_row):
+    where = np.searchsorted(rows, [i for i, _ in single]).tolist()
+    for k, (_, lv) in zip(where, single):
         if lv.__class__ is _Slots:
-            if lv.block is not None:
-                b = blocks.get(id(lv.block))
-                if b is None:
-                    b = blocks[id(lv.block)] = (lv.block, [], [])
-                b[1].append(k)
-                b[2].append(lv.j)
-                continue
             b = batches.get(id(lv.slots))
             if b is None:
                 b = batches[id(lv.slots)] = (lv.slots, lv.lookup, [], [])
@@ -1546,12 +1561,6 @@ def _slot_arrays(leaves_per_row) -> dict:
             for kind in codegen.SLOT_LEAVES:
                 for s, v in enumerate(lv[kind]):
                     out[kind][s][k] = v
-    for block, at, js in blocks.values():
-        at, js = np.asarray(at, dtype=np.int64), np.asarray(js, dtype=np.int64)
-        for kind in codegen.SLOT_LEAVES:
-            got = block[kind][js]
-            for s in range(got.shape[1]):
-                out[kind][s][at] = got[:, s]
     for slots, lookup, at, names in batches.values():
         at = np.asarray(at, dtype=np.int64)
         for kind in codegen.SLOT_LEAVES:
@@ -1559,7 +1568,7 @@ def _slot_arrays(leaves_per_row) -> dict:
             for s, c in enumerate(slots[kind]):
                 out[kind][s][at] = np.fromiter(map(number, map(operator.itemgetter(c), names)),
                                                dtype=np.int64, count=len(names))
-    return out
+    return rows, out, first
 
 
 class _ArrayPart:
@@ -1580,33 +1589,49 @@ def _array_groups(exprs, array_rows, leaf_of=None, n_rows=None, shapes_of=None):
     """Split rows into groups of one shape (evaluated as arrays) and the rest.
 
     ``n_rows`` (default ``len(exprs)``) is the size of the system, for the automatic choice;
-    ``shapes_of(rows)`` gives :func:`pvgraph.codegen.row_shape` of each row (default:
-    computed).
+    ``shapes_of(rows)`` gives :func:`pvgraph.codegen.row_shape` of each row, and blocks of
+    rows of one shape (see ``shapes_of`` in :func:`build_system`; default: each row's shape
+    computed). Groups are listed in the order of their first rows.
     """
     size = len(exprs) if n_rows is None else n_rows
     if not exprs or array_rows is False or (array_rows is None and size < ARRAY_MIN_ROWS):
         return [], list(range(len(exprs)))
     min_group = 2 if array_rows is True else ARRAY_MIN_GROUP
-    by_shape: dict = {}
-    of_object: dict = {}    # id(shape) -> its members (rows of one block share the object)
+    by_shape: dict = {}     # shape -> [first row, number of rows, members]
+    of_object: dict = {}    # id(shape) -> its entry (rows of one block share the object)
     scalar = []
-    shapes = [codegen.row_shape(r, leaf_of) for r in exprs] if shapes_of is None else \
-        shapes_of(exprs)
+    if shapes_of is None:
+        shapes, blocks = [codegen.row_shape(r, leaf_of) for r in exprs], []
+    else:
+        shapes, blocks = shapes_of(exprs)
+
+    def entry(shape, first):
+        got = of_object.get(id(shape))
+        if got is None:
+            got = by_shape.get(shape)
+            if got is None:
+                got = by_shape[shape] = [first, 0, []]
+            of_object[id(shape)] = got
+        return got
     for i, shape in enumerate(shapes):
         if shape is None:
             scalar.append(i)
-            continue
-        members = of_object.get(id(shape[0]))
-        if members is None:
-            members = of_object[id(shape[0])] = by_shape.setdefault(shape[0], [])
-        members.append((i, shape[1]))
+        elif shape is not IN_BLOCK:
+            got = entry(shape[0], i)
+            got[1] += 1
+            got[2].append((i, shape[1]))
+    for shape, at, payloads in blocks:
+        got = entry(shape, int(at[0]))
+        got[0] = min(got[0], int(at[0]))
+        got[1] += len(at)
+        got[2].append((at, payloads))
     groups = []
-    for members in by_shape.values():
-        if len(members) < min_group:
-            scalar.extend(i for i, _ in members)
+    for first, count, members in sorted(by_shape.values(), key=operator.itemgetter(0)):
+        if count < min_group:
+            for at, _ in members:
+                scalar.extend([at] if at.__class__ is int else at.tolist())
             continue
-        rows = [i for i, _ in members]
-        groups.append(_ArrayRows(rows, [lv for _, lv in members], exprs[rows[0]], leaf_of))
+        groups.append(_ArrayRows(members, exprs[first], leaf_of))
     scalar.sort()
     return groups, scalar
 
