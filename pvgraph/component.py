@@ -646,7 +646,7 @@ def _describe_validation(where: str, exc: ValidationError, fields=(), given=None
                 loc in model.model_fields else None
             limit = (err.get("ctx") or {}).get("le")
             if err["type"] == "less_than_equal" and limit == 1 and unit == "-" and \
-                    isinstance(value, (int, float)) and 1 < value <= 100:
+                    isinstance(value, (int, float)) and 2 <= value <= 100:
                 msg += f" (a fraction: {value:g} % is {value / 100:g}, or write '{value:g} %')"
             elif err["type"] in _BOUNDS and unit and unit != "-" and \
                     isinstance(value, (int, float)) and not isinstance(value, bool):
