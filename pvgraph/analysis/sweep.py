@@ -282,7 +282,8 @@ class SweepResult:
 
     def __init__(self, records: Sequence[CaseResult], param_names: Sequence[str], *,
                  backend: str = "serial", wall_time: float = 0.0,
-                 units: Mapping[str, str] | None = None, n_cases: int | None = None):
+                 units: Mapping[str, str] | None = None, n_cases: int | None = None,
+                 output_names: Sequence[str] = ()):
         self.records = list(records)
         self.n_cases = len(self.records) if n_cases is None else int(n_cases)
         self.files: tuple[str, str] | None = None
@@ -290,7 +291,9 @@ class SweepResult:
         self.backend = backend
         self.wall_time = float(wall_time)
         self.units = dict(units or {})
-        names: dict[str, None] = {}
+        # the outputs the run declares (a CompiledRun's), then any other a case returned: a
+        # sweep whose cases all failed still has their columns
+        names: dict[str, None] = dict.fromkeys(output_names)
         for r in self.records:
             names.update(dict.fromkeys(r.outputs))
         self.output_names = list(names)
@@ -831,8 +834,11 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
             tick(done, len(cases), res.index)
 
     def result(wall):
+        declared = getattr(run, "outputs", None) if getattr(run, "reduce", None) is None \
+            else None
         res = SweepResult([records[i] for i in sorted(records)], param_names, backend=backend,
-                          wall_time=wall, units=units, n_cases=len(cases))
+                          wall_time=wall, units=units, n_cases=len(cases),
+                          output_names=list(declared) if isinstance(declared, Mapping) else ())
         _warn_unknown_units(res)
         _warn_again(res.records)
         if out is not None:

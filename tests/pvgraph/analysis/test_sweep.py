@@ -318,3 +318,25 @@ def test_warnings_of_the_cases_are_recorded_and_raised_again(backend, tmp_path):
     assert rows[0].endswith(",warnings") and rows[4].endswith("x = 3 is implausibly large")
     saved = json.loads((tmp_path / "sweep.json").read_text())
     assert saved["cases"][3]["warnings"] == result[3].warnings
+
+
+def test_a_sweep_whose_cases_all_fail_keeps_the_declared_output_columns(tmp_path):
+    from pvgraph import Circuit
+    from pvgraph.analysis import CompiledRun
+    from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
+
+    def build():
+        c = Circuit("demo")
+        c.add("pump", FlowSource(Q="10 L/min"))
+        c.add("node", VolumeNode(V="0.5 L"))
+        c.add("orifice", Orifice(A="2 mm^2"))
+        c.add("tank", Tank())
+        c.connect("pump.port", "node.port", "orifice.a")
+        c.connect("orifice.b", "tank.port")
+        return c
+    run = CompiledRun(build, outputs={"p": "node.port.p"}, steady=True)
+    result = sweep(run, [{"orifice.A": -1.0}, {"orifice.A": -2.0}], backend="serial",
+                   out=tmp_path)
+    assert len(result.failed) == 2 and result.output_names == ["p"]
+    header = (tmp_path / "sweep.csv").read_text().splitlines()[0]
+    assert header.startswith("index,status,wall_time,orifice.A,p")
