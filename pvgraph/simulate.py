@@ -432,13 +432,18 @@ def _algebraic_start(system, exc, y, t0, calc_initial):
     alg = np.asarray(system.algebraic, dtype=bool)
     if not alg.any():
         return None
-    from .analysis.steady import steady_state
+    from .analysis.steady import limited_start, steady_state
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             op = steady_state(system, y0=y, t=t0, tol=1e-6)   # a first guess only
     except PvgraphError:
-        return None
+        # no steady state (a load the flow keeps moving): the start's own equations, by
+        # Newton with limited steps from the closed valve
+        got = limited_start(system, t0, y, np.zeros(system.n))
+        if got is None:
+            return None
+        return got[0]
     start = np.array(y, dtype=float)
     start[alg] = op.y[alg]
     return start

@@ -611,3 +611,26 @@ def test_a_chamber_that_cavitates_for_a_moment_gives_one_result_at_any_tolerance
     assert sol["cyl.flange.x"][0] == pytest.approx(0.11049, abs=3e-3)   # 0.4-2.5 mm off
     assert sol["cyl.flange.x"][1] == pytest.approx(0.2 + 1e-6 * 30, abs=5e-5)   # on the stop
     assert sol["line.port.p"][1] == pytest.approx(152.2373e5, rel=1e-4)
+
+
+def test_a_pump_straight_into_a_counterbalance_check_lifts_its_load():
+    """10 L/min straight (no volume) through a counterbalance valve's free-flow check into a
+    cylinder lifting 1000 kg: no steady state exists to start from (the load moves), and the
+    consistent start's Newton meets the closed check's flat leakage; limited steps get it
+    there. The rod rises at Q/A_A with p_A = (m g + b v)/A_A."""
+    c = Circuit("lift")
+    c.add("src", FlowSource(Q="10 L/min"))
+    c.add("cb", CounterbalanceValve(p_set="150 bar", A_max="15 mm^2", A_check="20 mm^2",
+                                    ratio=3.0, p_check="5 bar"))
+    c.add("cyl", Cylinder(A_A="20 cm^2", A_rod="10 cm^2", stroke=1.0, V_dead_A="0.05 L",
+                          V_dead_B="0.05 L", p0_A="49 bar"))
+    c.add("m", Mass(m=1000.0, g=-9.81, b=2e5, x0=0.2))
+    c.add("t", Tank())
+    c.connect("src.port", "cb.valve")
+    c.connect("cb.load", "cyl.A")
+    c.connect("cyl.B", "t.port", "cb.pilot")
+    c.connect("cyl.flange", "m.flange")
+    sol = simulate(c, 2.0, t_eval=[1.0, 2.0])
+    v = 10 / 60e3 / 20e-4
+    np.testing.assert_allclose(sol["m.v"], v, rtol=1e-6)
+    np.testing.assert_allclose(sol["cyl.A.p"], (1000 * 9.81 + 2e5 * v) / 20e-4, rtol=1e-6)
