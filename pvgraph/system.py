@@ -723,11 +723,22 @@ class System:
                     out[f"{path}.{fname}"] = value
                 else:
                     diffs.append(f"{path}.{fname} = {value!r} (compiled with {old!r})")
+        if not diffs and self._circuit is not None and \
+                _topology(circuit) != self._compiled_topology():
+            diffs.append("its connections or exposed ports differ")
         if diffs:
             raise ParameterError(f"{self.name}: the circuit differs structurally from the "
                                  f"compiled one: " + "; ".join(diffs[:8]) +
                                  ". Compile it instead.")
         return out
+
+    def _compiled_topology(self):
+        """The connections and exposed ports of the compiled circuit (read at the first
+        :meth:`params_from`)."""
+        got = getattr(self, "_topology_key", None)
+        if got is None:
+            got = self._topology_key = _topology(self._circuit)
+        return got
 
     @property
     def _runtime_fields(self) -> dict[str, set]:
@@ -1069,6 +1080,13 @@ def _updated_model(model, fields: dict, path: str):
         raise ParameterError(_describe_validation(path, exc, list(type(model).model_fields),
                                                   fields, type(model))) \
             from None
+
+
+def _topology(circuit):
+    """Components (path, type), connections and exposed ports of ``circuit``, to any depth,
+    without its name: equal for two circuits of one structure."""
+    from .circuit import _structure_key
+    return _structure_key(circuit, {})[2:]
 
 
 def _field_diffs(new, old, prefix=""):

@@ -24,20 +24,21 @@ of the mesh, a loss whichever way the power flows::
 
     a.phi = i * b.phi,   b.tau = -i * e * a.tau          (ideal teeth)
     T = k (a.phi - i b.phi) + d der(a.phi - i b.phi),   a.tau = T,   b.tau = -i e T  (compliant)
-    e = eta        while power flows from a to b (P_a = a.tau * der(a.phi) > 0),
-    e = 1 / eta    while it flows from b to a (an overrunning load driving the input back),
-    e = (eta + 1/eta)/2 + (eta - 1/eta)/2 * tanh(P_a / P_eps)      (smooth in between)
+    e = eta ** tanh(P_a / P_eps),      P_a = a.tau * der(a.phi)  (the power into the gear at a)
 
-so the power leaving is eta times the power entering in both directions (a winch lowering its
-load through the gearbox heats the gearbox as much as one lifting it). ``eta = 1`` is the
-lossless gear, ``b.tau = -i a.tau``. Self-locking (a worm gear holding its load) is not
-modelled.
+so e = eta while power flows from a to b, e = 1 / eta while it flows from b to a (an
+overrunning load driving the input back), and e = 1 at rest: the power leaving is at most the
+power entering, eta times it beyond P_eps, in both directions (a winch lowering its load
+through the gearbox heats the gearbox as much as one lifting it), and a gear at rest passes
+the ideal torque. ``eta = 1`` is the lossless gear, ``b.tau = -i a.tau``. Self-locking (a worm
+gear holding its load) is not modelled.
 """
 
 from __future__ import annotations
 
 from pydantic import Field, field_validator
 
+from pvgraph import expr as E
 from pvgraph.component import Component, Mechanical, Params, der
 from pvgraph.laws import smooth_sign
 
@@ -128,6 +129,6 @@ class Gear(Component):
         e = 1.0
         if p.eta < 1.0:
             P_a = v.observe("P_a", T * der(v.a.phi), "W", "power into the gear at a")
-            e = 0.5 * (p.eta + 1.0 / p.eta) + 0.5 * (p.eta - 1.0 / p.eta) * smooth_sign(
-                P_a, p.P_eps)
+            # eta^s with s in [-1, 1] of the power's sign: a loss whichever way, none at rest
+            e = E.exp(smooth_sign(P_a, p.P_eps) * E.log(p.eta))
         return rows + [v.b.tau + p.i * e * T]

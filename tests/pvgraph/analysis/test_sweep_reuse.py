@@ -152,3 +152,37 @@ def test_compiled_run_without_a_circuit_or_with_one_output_name():
     run = CompiledRun(orifice_bench, outputs="node.port.p", steady=True, tol=1e-12)
     p = run(**{"orifice.A": 2e-6})["node.port.p"]
     assert p == pytest.approx(analytic({}, Q=1e-4, A=2e-6), rel=1e-8)
+
+
+def test_a_case_with_other_connections_is_compiled_not_reused():
+    """Two equal orifices in parallel or in series through a second volume: the same parts and
+    parameters, another circuit. Reusing the parallel system for the series case would give
+    7.55e5 Pa instead of the series closed form 2 rho/2 (Q/(Cd A))^2 = 6.04e6 Pa."""
+    from pvgraph import Circuit
+    from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
+    from pvgraph.errors import ParameterError
+
+    def build(series=0):
+        c = Circuit("topo")
+        c.add("pump", FlowSource(Q=1e-4))
+        c.add("n1", VolumeNode(V=5e-4))
+        c.add("n2", VolumeNode(V=5e-4))
+        c.add("o1", Orifice(A=2e-6, dp_t=1e3))
+        c.add("o2", Orifice(A=2e-6, dp_t=1e3))
+        c.add("tank", Tank())
+        c.connect("pump.port", "n1.port", "o1.a")
+        if series:
+            c.connect("o1.b", "n2.port", "o2.a")
+            c.connect("o2.b", "tank.port")
+        else:
+            c.connect("n1.port", "o2.a")
+            c.connect("o1.b", "o2.b", "tank.port")
+            c.connect("n2.port", "tank.port")
+        return c
+    with pytest.raises(ParameterError, match="connections or exposed ports differ"):
+        build(0).compile().params_from(build(1))
+    run = CompiledRun(build=build, outputs={"p": "n1.port.p"}, steady=True, tol=1e-12)
+    with pytest.warns(RecompileWarning, match="builds another structure"):
+        res = sweep(run, [{"series": 0}, {"series": 1}], backend="serial")
+    q = lambda Q: 870.0 / 2 * (Q / (0.6 * 2e-6)) ** 2
+    np.testing.assert_allclose(res.column("p"), [q(0.5e-4), 2 * q(1e-4)], rtol=1e-6)
