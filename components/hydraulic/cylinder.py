@@ -8,7 +8,8 @@ fully retracted, ``x = stroke`` fully extended). With the annulus area ``A_B = A
     V_A / beta(p_A) * der(p_A) = A.q - A_A * der(x) - q_leak
     V_B / beta(p_B) * der(p_B) = B.q + A_B * der(x) + q_leak
     q_leak = K_leak * (p_A - p_B)
-    F_stop = k_stop * (pen_hi - pen_lo) + (d_stop * (c_hi + c_lo) + d_cush * (w_hi + w_lo)) * v
+    F_stop = max(k_stop pen_hi + d_stop c_hi v, 0) - max(k_stop pen_lo - d_stop c_lo v, 0)
+             + d_cush * (w_hi + w_lo) * v
     flange.f = -(A_A * p_A - A_B * p_B) + F_stop
 
 This is the chamber continuity of report appendix A.5 (eq. A.7) applied to each side, as the
@@ -143,12 +144,14 @@ class Cylinder(Component):
         pen_lo = onset_penetration(-x, p.eps_stop)
         c_hi = onset_indicator(x - p.stroke, p.eps_stop)
         c_lo = onset_indicator(-x, p.eps_stop)
-        d = p.d_stop * (c_hi + c_lo)
+        # each stop only pushes: its damping does not pull a rod that leaves it
+        F_contact = (E.maximum(p.k_stop * pen_hi + p.d_stop * c_hi * vel, 0.0)
+                     - E.maximum(p.k_stop * pen_lo - p.d_stop * c_lo * vel, 0.0))
         if p.l_cush > 0.0:
-            d = d + p.d_cush * (_cushion_weight(x - p.stroke, p.l_cush)
-                                + _cushion_weight(-x, p.l_cush))
+            F_contact = F_contact + p.d_cush * (_cushion_weight(x - p.stroke, p.l_cush)
+                                                + _cushion_weight(-x, p.l_cush)) * vel
         v.observe("penetration", pen_hi - pen_lo, "m", "past the stroke (+) or before 0 (-)")
-        F_stop = v.observe("F_stop", p.k_stop * (pen_hi - pen_lo) + d * vel, "N",
+        F_stop = v.observe("F_stop", F_contact, "N",
                            "end-stop and cushion force (on the rod in -x)")
         cavitation_warning(v, p_A, p, "chamber A", "cavitated_A")
         cavitation_warning(v, p_B, p, "chamber B", "cavitated_B")

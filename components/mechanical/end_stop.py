@@ -3,11 +3,12 @@
 With ``x = flange.x``, ``v = der(flange.x)`` and the penetrations past each limit::
 
     pen_hi = max(x - x_max, 0),   pen_lo = max(x_min - x, 0)       (rounded within eps)
-    flange.f = k * (pen_hi - pen_lo) + d * v * (c_hi + c_lo)
+    flange.f = max(k * pen_hi + d * v * c_hi, 0) - max(k * pen_lo - d * v * c_lo, 0)
 
 ``c_hi``, ``c_lo`` are the contact indicators d(pen)/dx: 0 in free travel, 1 in contact, so the
 damping acts only while a stop is touched (a Kelvin-Voigt contact, as in
-``Modelica.Mechanics.Translational.Components.ElastoGap``). The stop pushes the node with
+``Modelica.Mechanics.Translational.Components.ElastoGap``), and a stop only pushes: while the
+body leaves it, the damping does not pull it back. The stop pushes the node with
 ``-flange.f``: back into the stroke. Max is rounded as :func:`pvgraph.laws.smooth_pos` within
 ``eps`` (evaluated without cancellation, :mod:`pvgraph.components.mechanical.laws`), so the force and its
 derivative are continuous; in free travel a residual force of
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 from pydantic import Field, model_validator
 
+from pvgraph import expr as E
 from pvgraph.component import Component, Mechanical, Params, der
 
 from .laws import contact_indicator, contact_penetration
@@ -64,6 +66,9 @@ class EndStop(Component):
         c_lo = contact_indicator(p.x_min - x, p.eps)
         v.observe("penetration", pen_hi - pen_lo, "m",
                   "past x_max (positive) or x_min (negative)")
-        F = v.observe("F", p.k * (pen_hi - pen_lo) + p.d * vel * (c_hi + c_lo), "N",
+        # each stop only pushes (as ElastoGap): its damping does not pull a body that leaves
+        push_hi = E.maximum(p.k * pen_hi + p.d * vel * c_hi, 0.0)
+        push_lo = E.maximum(p.k * pen_lo - p.d * vel * c_lo, 0.0)
+        F = v.observe("F", push_hi - push_lo, "N",
                       "contact force (the stop pushes the body with -F)")
         return [v.flange.f - F]

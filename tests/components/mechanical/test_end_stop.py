@@ -69,3 +69,32 @@ def test_end_stop_holds_pushed_mass_with_small_penetration(sim):
     assert np.min(x) > -1e-12
     assert sol.final("spool.flange.x") == pytest.approx(mm(7) + F / k, abs=0.01 * F / k)
     assert abs(sol.final("spool.v")) < 1e-6
+
+
+def test_a_body_rebounds_from_a_stop_that_only_pushes():
+    """1 kg at 1 m/s into a stop of k = 1e7 N/m, d = 2e3 N s/m. In contact m x'' = -(k x + d x')
+    while that force pushes; the body leaves where it would pull (k x + d x' = 0), as
+    ElastoGap's. Reference: scipy's Radau on that law, to the separation event. The damping
+    no longer pulls the body back (it left at 0.35 m/s against 0.43)."""
+    from scipy.integrate import solve_ivp
+
+    from pvgraph.components.mechanical import Mass
+    from pvgraph.simulate import simulate
+    m, k, d, v0 = 1.0, 1e7, 2e3, 1.0
+
+    def contact(t, s):
+        return [s[1], -(k * s[0] + d * s[1]) / m]
+
+    def leaves(t, s):
+        return k * s[0] + d * s[1]
+    leaves.terminal, leaves.direction = True, -1
+    ref = solve_ivp(contact, (0.0, 0.1), [0.0, v0], method="Radau", rtol=1e-10, atol=1e-14,
+                    events=leaves)
+    rebound = -ref.y_events[0][0][1]
+    c = Circuit("bounce")
+    c.add("body", Mass(m=m, x0=-0.01, v0=v0))
+    c.add("stop", EndStop(x_min=-1.0, x_max=0.0, k=k, d=d))
+    c.connect("body.flange", "stop.flange")
+    sol = simulate(c, 0.05, rtol=1e-9, atol=1e-12, t_eval=[0.05])
+    assert -sol["body.v"][-1] == pytest.approx(rebound, rel=2e-3)
+    assert rebound == pytest.approx(0.4349, abs=1e-3)
