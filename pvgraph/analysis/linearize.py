@@ -203,8 +203,21 @@ class LinearModel:
         sys = self.siso(output, input)
         w = _frequency_grid(np.concatenate([self.poles(), control.zeros(sys)]),
                             points_per_decade)
-        resp = control.frequency_response(sys, w)
-        h = np.asarray(resp.complex).reshape(-1)
+
+        def response(w):
+            return np.asarray(control.frequency_response(sys, w).complex).reshape(-1)
+        h = response(w)
+        # the gain crossover can lie outside two decades of the poles (a high loop gain above
+        # them, an integrator's below): widen the grid by two decades at a time until the
+        # magnitude is below 1 at the top and, where it rises towards low frequencies, above
+        # 1 at the bottom
+        for _ in range(MARGIN_GRID_WIDENINGS):
+            top, bottom = abs(h[-1]) >= 1.0, abs(h[0]) <= 1.0 and abs(h[0]) > abs(h[1])
+            if not (top or bottom):
+                break
+            lo, hi = np.log10(w[0]) - 2.0 * bottom, np.log10(w[-1]) + 2.0 * top
+            w = np.logspace(lo, hi, max(int((hi - lo) * points_per_decade), 2))
+            h = response(w)
         gm, pm, _, wcg, wcp, _ = control.stability_margins(
             (np.abs(h), np.degrees(np.unwrap(np.angle(h))), w))
         return Margins(float(gm), float(pm), float(wcg), float(wcp))
@@ -384,6 +397,9 @@ def _step_grid(A, b, c) -> np.ndarray:
     t_end = 10.0 / rate[keep].min()
     steps = int(np.clip(50.0 * t_end * np.abs(lam[keep]).max(), 20000, 500000))
     return np.linspace(0.0, t_end, steps + 1)
+
+
+MARGIN_GRID_WIDENINGS = 6   # at most 12 more decades either way for a gain crossover
 
 
 def _frequency_grid(roots, points_per_decade):

@@ -486,3 +486,32 @@ def test_an_input_at_its_lower_bound_is_differenced_one_sided():
     slope = (p1 - p0) / dK
     assert slope < 0.0
     assert model.dc_gain()[0, 0] == pytest.approx(slope, rel=1e-3)
+
+
+def test_margins_find_a_gain_crossover_far_from_the_poles():
+    """L = 1e4/(s + 10) crosses 0 dB near 1e4 rad/s, three decades above its pole: PM = 180 -
+    atan(999.95) = 90.057 deg. L = 1e7/(s + 1)^3 crosses at 215.4 rad/s with PM = -89.2 deg (the
+    closed loop is unstable); L = 0.1/(s (s + 10)) crosses at 0.01 rad/s, below its poles."""
+    pytest.importorskip("control")
+    import math
+
+    from pvgraph.analysis import LinearModel
+
+    def model(A, B, C):
+        return LinearModel(np.atleast_2d(A), np.atleast_2d(B).reshape(-1, 1),
+                           np.atleast_2d(C), np.zeros((1, 1)),
+                           [f"x{i}" for i in range(len(np.atleast_2d(A)))], ["u"], ["y"])
+    first = model(-10.0, 1.0, 1e4).margins()
+    wc = math.sqrt(1e8 - 100.0)
+    assert first.w_phase == pytest.approx(wc, rel=1e-6)
+    assert first.phase == pytest.approx(180.0 - math.degrees(math.atan(wc / 10.0)), abs=1e-6)
+    A3 = np.array([[-1.0, 1.0, 0.0], [0.0, -1.0, 1.0], [0.0, 0.0, -1.0]])
+    third = model(A3, [0.0, 0.0, 1.0], [1e7, 0.0, 0.0]).margins()
+    w3 = math.sqrt((1e7) ** (2.0 / 3.0) - 1.0)
+    assert third.w_phase == pytest.approx(w3, rel=1e-6)
+    assert third.phase == pytest.approx(180.0 - 3.0 * math.degrees(math.atan(w3)), abs=1e-5)
+    A1 = np.array([[0.0, 1.0], [0.0, -10.0]])
+    low = model(A1, [0.0, 1.0], [0.1, 0.0]).margins()
+    assert low.w_phase == pytest.approx(0.01, rel=1e-3)
+    assert low.phase == pytest.approx(90.0 - math.degrees(math.atan(low.w_phase / 10.0)),
+                                      abs=1e-4)
