@@ -726,6 +726,9 @@ def cmd_linearize(args) -> int:
         return 1
     poles = lm.poles()
     wns, zetas, _ = lm.damping()
+    params = circuit.parameters()
+    in_units = {u: (declared_unit(params[u][1]) if u in params else None) or "-"
+                for u in args.input}
     print(f"{target.spec} linearised at {', '.join(f'{k} = {v:.6g}' for k, v in u0.items())} "
           f"(SI); operating point ({op.method}, {op.iterations} iterations):")
     for n in outputs:
@@ -743,10 +746,10 @@ def cmd_linearize(args) -> int:
     except np.linalg.LinAlgError:
         gain = None
     if gain is not None:
-        print("DC gain (SI per SI unit of each input):")
+        print("DC gain (SI):")
         for i, n in enumerate(outputs):
             for j, u in enumerate(args.input):
-                print(f"  d {n} / d {u}: {gain[i, j]:.6g}")
+                print(f"  d {n} / d {u}: {gain[i, j]:.6g} {_per(system.unit(n), in_units[u])}")
     if args.json:
         _write_json_atomic(args.json, {
             "target": target.spec, "inputs": u0, "units": {n: system.unit(n) for n in outputs},
@@ -765,12 +768,21 @@ def cmd_linearize(args) -> int:
                 mag, phase = lm.bode(w, i, j)
                 mags.append(mag)
                 phases.append(phase)
-                labels.append(f"{n} / {u} [{system.unit(n) or '-'} per SI unit]")
+                labels.append(f"{n} / {u} [{_per(system.unit(n), in_units[u])}]")
         path = plot_bode(w / (2.0 * np.pi), mags, phases, args.bode, labels=labels,
                          title=f"{target.spec}: linearised at "
                                f"{', '.join(f'{k} = {v:.4g}' for k, v in u0.items())}")
         print(f"wrote {path}")
     return 0
+
+
+def _per(out_unit: str, in_unit: str) -> str:
+    """The unit of d out / d in: ``"Pa/(m^3/s)"``."""
+    out_unit = out_unit or "-"
+    if in_unit in ("-", ""):
+        return out_unit
+    return f"{out_unit}/({in_unit})" if any(c in in_unit for c in " /*^") else \
+        f"{out_unit}/{in_unit}"
 
 
 def _bode_grid(poles):

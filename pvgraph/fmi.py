@@ -193,6 +193,10 @@ def export_fmu(circuit, path, *, inputs: Sequence[str] = (), outputs: Sequence[s
         raise FmiError('FMU export needs pythonfmu: pip install "pvgraph[fmi]"') from None
     from .modelfile import ModelFileError, loads, dumps
 
+    from .simulate import _name_list
+    inputs = _name_list(inputs, "export_fmu: inputs")
+    outputs = _name_list(outputs, "export_fmu: outputs")
+    parameters = _name_list(parameters, "export_fmu: parameters")
     path = os.fspath(path)
     if not path.endswith(".fmu"):
         raise FmiError(f"{path}: an FMU file name ends in .fmu")

@@ -707,7 +707,7 @@ def test_linearize_a_file_target_draws_the_bode_plot(rig_file, tmp_path, capsys,
     assert drawn["mags"][0][0] == pytest.approx(20 * np.log10(dp_dq), abs=1e-3)
     pole_hz = dp_dq ** -1 * BETA / V_NODE / (2 * np.pi)
     assert drawn["freq"][0] < pole_hz / 50 and drawn["freq"][-1] > pole_hz * 50
-    assert drawn["labels"] == ["node.port.p / pump.Q [Pa per SI unit]"]
+    assert drawn["labels"] == ["node.port.p / pump.Q [Pa/(m^3/s)]"]
 
 
 def test_a_circuit_the_equations_fix_entirely(tmp_path, capsys):

@@ -460,6 +460,7 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
                                f"for another system (other parameter values?); use "
                                f"steady_state(system)")
     outputs = _name_list(outputs, "linearize: outputs")
+    _check_linear_outputs(system, outputs)
     for what, arg in (("inputs", inputs), ("direct", direct)):
         if arg is not None and not isinstance(arg, Mapping):
             raise PvgraphError(f"linearize: {what} must be a mapping {{input name: array}}, "
@@ -577,6 +578,47 @@ def _input_derivatives(build, u0, name, op, outputs, eps_rel=1e-5, du=None):
             (-3.0 * zero[1] + 4.0 * one[1] - two[1]) / (2.0 * step))
 
 
+def _check_linear_outputs(system, outputs) -> None:
+    """Outputs of a linear model are the system's variables; a derived output (an orifice's
+    flow, a power) is refused by name before anything is solved, with the way to its
+    steady-state derivatives."""
+    derived = []
+    for name in outputs:
+        try:
+            real = system.resolve_name(name)
+        except KeyError:
+            continue            # unknown names are told with close matches where looked up
+        if real in system.observed and real not in system.index:
+            derived.append(name)
+    if derived:
+        raise PvgraphError(
+            f"linearize: {', '.join(map(repr, derived))} "
+            f"{'is a derived output' if len(derived) == 1 else 'are derived outputs'} "
+            f"(computed from the unknowns); a linear model's outputs are the system's "
+            f"variables: take the variables it is computed from, or its steady-state "
+            f"derivatives with op.sensitivity({derived[0]!r}, params)")
+
+
+def _si_number(value, what: str) -> float:
+    """An input value as an SI float: a number, or a quantity with a unit ("6 L/min")
+    converted to SI; the inputs are differenced, so anything else is refused by name."""
+    from ..units import _parse, is_quantity, _is_pint, _pint_si, _NUMBER
+    if isinstance(value, bool):
+        raise PvgraphError(f"{what} = {value!r}: give a number")
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        if not math.isfinite(float(value)):
+            raise PvgraphError(f"{what} = {value!r} is not finite")
+        return float(value)
+    if _is_pint(value):
+        return float(_pint_si(value)[0])
+    if isinstance(value, str) and is_quantity(value):
+        m = _NUMBER.match(value)
+        if m:
+            return float(m.group(1)) * (_parse(m.group(2))[0] if m.group(2) else 1.0)
+    raise PvgraphError(f"{what} = {value!r}: give a number (SI) or a quantity with a unit "
+                       f"('6 L/min')")
+
+
 def _as_system(target):
     return target if isinstance(target, System) else target.compile()
 
@@ -598,6 +640,7 @@ def linearize_circuit(build: Callable[[dict], object], u0: Mapping[str, float],
         raise PvgraphError("outputs: name at least one variable")
     if not (isinstance(eps_rel, (int, float)) and eps_rel > 0.0 and math.isfinite(eps_rel)):
         raise PvgraphError(f"eps_rel must be a positive number, got {eps_rel!r}")
+    u0 = {name: _si_number(value, f"u0[{name!r}]") for name, value in u0.items()}
     for name, step in dict(du or {}).items():
         if name not in u0:
             raise PvgraphError(f"du names {name!r}, which is not an input; the inputs are "
@@ -608,6 +651,7 @@ def linearize_circuit(build: Callable[[dict], object], u0: Mapping[str, float],
     if built is None:
         raise PvgraphError("build(u0) returned None; it must return a Circuit or a System")
     system = _as_system(built)
+    _check_linear_outputs(system, outputs)
     if op is None:
         op = steady_state(system, y0=y0, tol=tol)
     du = dict(du or {})

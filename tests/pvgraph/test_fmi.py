@@ -77,3 +77,11 @@ def test_export_refuses_unknown_names(tmp_path):
         export_fmu(demo(), tmp_path / "x.fmu", outputs=["node.port.pp"])
     with pytest.raises(FmiError, match="ends in .fmu"):
         export_fmu(demo(), tmp_path / "x.zip", outputs=["node.port.p"])
+
+
+def test_one_name_is_one_input_or_output(tmp_path):
+    """outputs="node.port.p" is that variable, not its letters."""
+    path = export_fmu(demo(), tmp_path / "one.fmu", inputs="pump.Q", outputs="node.port.p")
+    md = fmpy.read_model_description(path)
+    assert {v.name: v.causality for v in md.modelVariables} == {"pump.Q": "input",
+                                                                "node.port.p": "output"}

@@ -515,3 +515,28 @@ def test_margins_find_a_gain_crossover_far_from_the_poles():
     assert low.w_phase == pytest.approx(0.01, rel=1e-3)
     assert low.phase == pytest.approx(90.0 - math.degrees(math.atan(low.w_phase / 10.0)),
                                       abs=1e-4)
+
+
+def test_linearize_circuit_takes_quantities_and_refuses_derived_outputs_up_front():
+    from pvgraph import Circuit
+    from pvgraph.analysis import linearize_circuit
+    from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
+    from pvgraph.errors import PvgraphError
+
+    def build(u):
+        c = Circuit("demo")
+        c.add("pump", FlowSource(Q=u["pump.Q"]))
+        c.add("node", VolumeNode(V="0.5 L"))
+        c.add("orifice", Orifice(A="2 mm^2", dp_t=1e3))
+        c.add("tank", Tank())
+        c.connect("pump.port", "node.port", "orifice.a")
+        c.connect("orifice.b", "tank.port")
+        return c
+    by_unit = linearize_circuit(build, {"pump.Q": "6 L/min"}, ["node.port.p"])
+    by_si = linearize_circuit(build, {"pump.Q": 1e-4}, ["node.port.p"])
+    np.testing.assert_allclose(by_unit.poles(), by_si.poles(), rtol=1e-9)
+    # dp/dQ of the orifice law at 6 L/min: rho Q / (Cd A)^2
+    assert by_unit.dc_gain()[0, 0] == pytest.approx(870.0 * 1e-4 / (0.6 * 2e-6) ** 2, rel=1e-4)
+    with pytest.raises(PvgraphError, match=r"'orifice.q' is a derived output .* "
+                                           r"op.sensitivity"):
+        linearize_circuit(build, {"pump.Q": 1e-4}, ["orifice.q"])
