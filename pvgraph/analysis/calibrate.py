@@ -15,8 +15,10 @@ reports, at the optimum ``theta*`` with Jacobian ``J`` of the weighted residuals
 - standard errors ``sqrt(C_kk)``, two-sided confidence intervals ``theta*_k +- t_{m-n} sqrt(C_kk)``
   from Student's t (the normal quantile ``z`` with ``absolute_sigma=True``: the scale is known,
   not estimated), and the correlation matrix;
-- identifiability: ``J^T J`` is inverted through its singular value decomposition; a direction
-  whose singular value is below ``rcond`` times the largest is *not identifiable from these
+- identifiability: ``J^T J`` is inverted through the singular value decomposition of ``J`` with
+  its columns scaled to unit length (so the answer does not depend on the parameters' units or
+  start values); a direction whose singular value is below ``rcond`` times the largest is *not
+  identifiable from these
   data*, and every parameter with a component along it gets an infinite interval and is named
   in :attr:`CalibrationResult.unidentifiable`, instead of a confident-looking number.
 
@@ -485,10 +487,15 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
         Jz = Jz / s[:, None]
     else:
         Jz = _central_jacobian(evaluate, res.x, pred, lo, hi, cov_step) / s[:, None]
-    _, sv, Vt = np.linalg.svd(Jz, full_matrices=False)
+    # identifiability on the Jacobian with its columns scaled to unit norm: a question of the
+    # columns' directions, not of the units (an offset started at 0 has the scale 1 SI unit,
+    # whose column is tiny, and was read as not identifiable)
+    col = np.linalg.norm(Jz, axis=0)
+    col = np.where(col > 0.0, col, 1.0)
+    _, sv, Vt = np.linalg.svd(Jz / col, full_matrices=False)
     keep = sv > rcond * (sv[0] if sv.size and sv[0] > 0 else 1.0)
     inv = np.where(keep, 1.0 / np.where(keep, sv, 1.0) ** 2, 0.0)
-    cov = ((Vt.T * inv) @ Vt) * np.outer(scale, scale)       # physical units
+    cov = ((Vt.T * inv) @ Vt) / np.outer(col, col) * np.outer(scale, scale)   # physical
     weak = ((Vt[~keep] ** 2).sum(axis=0) > 1e-3) if np.any(~keep) else np.zeros(n, bool)
     s2 = 2.0 * cost / dof if (dof > 0 and not absolute_sigma) else 1.0
     cov = cov * s2

@@ -237,3 +237,20 @@ def test_fit_parameters_and_result_lookups_of_the_wrong_kind():
         fit.table({"aa": 1.0, "c": 2.0})
     row = fit.table({"a": 2.0, "c": 3.0}).splitlines()[2].split()
     assert row[0] == "a" and float(row[-1]) == 2.0
+
+
+def test_an_offset_started_at_zero_is_identifiable_with_the_linear_theory_interval():
+    """y = a x + b with b (an offset) started at 0: both are identifiable, and the standard
+    errors are linear regression's, sigma^2 (X^T X)^-1, whatever the start (b's scale is then
+    1 SI unit, whose Jacobian column is tiny next to a's)."""
+    x = np.linspace(0.0, 10.0, 21)
+    rng = np.random.default_rng(3)
+    y = 3.0 * x + 1e4 + rng.normal(scale=50.0, size=x.size)
+    X = np.column_stack([x, np.ones_like(x)])
+    theory = 50.0 * np.sqrt(np.diag(np.linalg.inv(X.T @ X)))
+    for b0 in (0.0, 5e3):
+        res = calibrate(lambda th: th["a"] * x + th["b"], y,
+                        [FitParameter("a", 1.0), FitParameter("b", b0)],
+                        sigma=50.0, absolute_sigma=True)
+        assert res.unidentifiable == []
+        np.testing.assert_allclose(res.std_errors, theory, rtol=1e-4)
