@@ -65,6 +65,7 @@ class CircuitSlave:
         self.rtol = float(spec.get("rtol", RTOL))
         self.system = self.circuit.compile()
         self.t = 0.0
+        self._started = False
         self.y = self.system.y0.copy()
         self.yp = self.system.yp0.copy()
         self._outputs = self._evaluate(self.t, self.y, self.yp)
@@ -87,31 +88,44 @@ class CircuitSlave:
 
     def get(self, name: str) -> float:
         if name in self._outputs:
+            if not self._started and self._pending():
+                # outputs read before the first step show the parameters set so far
+                self._apply()
+                self._outputs = self._evaluate(self.t, self.y, self.yp)
             return self._outputs[name]
         return self.values[name]
 
     def set(self, name: str, value: float) -> None:
-        self.values[name] = float(value)
+        value = float(value)
+        # a value the component refuses is refused here, naming it, not at the next step
+        self.circuit.check_parameters({name: value})
+        self.values[name] = value
+
+    def _pending(self) -> dict:
+        return {k: v for k, v in self.values.items() if self._applied.get(k) != v}
 
     def _apply(self) -> None:
-        changed = {k: v for k, v in self.values.items() if self._applied.get(k) != v}
+        changed = self._pending()
         if not changed:
             return
         old_names, old_y, old_yp = list(self.system.names), self.y, self.yp
         self.circuit.set_parameters(changed)
-        self.system = self.circuit.compile()
-        position = {n: k for k, n in enumerate(old_names)}
+        # runtime parameters: no compilation (a structural one recompiles, with a warning)
+        self.system = self.system.with_params(changed)
         self.y = self.system.y0.copy()
         self.yp = self.system.yp0.copy()
-        for k, n in enumerate(self.system.names):
-            if n in position:
-                self.y[k] = old_y[position[n]]
-                self.yp[k] = old_yp[position[n]]
+        if self._started:       # before the run, start values follow the parameters (p0)
+            position = {n: k for k, n in enumerate(old_names)}
+            for k, n in enumerate(self.system.names):
+                if n in position:
+                    self.y[k] = old_y[position[n]]
+                    self.yp[k] = old_yp[position[n]]
         self._applied = dict(self.values)
 
     def step(self, t: float, dt: float) -> bool:
         from .simulate import simulate
         self._apply()
+        self._started = True
         sol = simulate(self.system, t + dt, t_start=t, rtol=self.rtol, y0=self.y, yp0=self.yp,
                        t_eval=[t, t + dt])
         self.y, self.yp, self.t = sol.y[-1].copy(), sol.yp[-1].copy(), t + dt

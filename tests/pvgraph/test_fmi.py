@@ -85,3 +85,24 @@ def test_one_name_is_one_input_or_output(tmp_path):
     md = fmpy.read_model_description(path)
     assert {v.name: v.causality for v in md.modelVariables} == {"pump.Q": "input",
                                                                 "node.port.p": "output"}
+
+
+def test_a_start_value_parameter_set_before_the_run_starts_the_fmu_there(tmp_path):
+    """node.p0 = 50 bar set before the run: the node starts at 50 bar (it was copied back from
+    the exported start, 0), and the outputs read before the first step show it."""
+    c = demo()
+    c["node"].params = c["node"].params.model_copy(update={"p0": 0.0})
+    path = export_fmu(c, tmp_path / "p0.fmu", outputs=["node.port.p"], parameters=["node.p0"])
+    res = fmpy.simulate_fmu(path, stop_time=0.02, output_interval=0.01,
+                            start_values={"node.p0": 50e5}, output=["node.port.p"])
+    assert res["node.port.p"][0] == pytest.approx(50e5, rel=1e-9)
+    c["node"].params = c["node"].params.model_copy(update={"p0": 50e5})
+    ref = simulate(c, 0.02, t_eval=[0.01, 0.02])
+    np.testing.assert_allclose(res["node.port.p"][1:], ref["node.port.p"], rtol=1e-5)
+
+
+def test_a_value_the_component_refuses_is_refused_when_set(fmu):
+    """A negative area fails at fmi2SetReal, where it is given, not at the next step."""
+    with pytest.raises(Exception, match="fmi2SetReal failed"):
+        fmpy.simulate_fmu(fmu, stop_time=0.1, output_interval=0.05,
+                          start_values={"orifice.A": -1e-6}, output=["node.port.p"])
