@@ -13,7 +13,9 @@ Stribeck (static level ``F_s``, the report's F_co + F_so, decaying over ``v_s``,
 C_s). ``delta = 1`` is the exponential decay of eq. A.5, ``delta = 2`` (default) the Gaussian
 form of :func:`pvgraph.laws.coulomb_friction`. ``sign(v)`` is regularised as ``tanh(v/v_eps)``:
 a force below the breakaway level does not stick the spool exactly but lets it creep at
-``v = v_eps * atanh(F/F_c)``; choose ``v_eps`` well below the velocities of interest.
+``v = v_eps * atanh(F/F_s)`` (near rest the law is ``F_s tanh(v/v_eps) + b v``: ``F_s`` is the
+level there, ``F_c`` only without a Stribeck term); choose ``v_eps`` well below the velocities
+of interest.
 The report's values for the main spool: c_v = 25 N s/m (tuned, table 4.14), Coulomb
 c_cm = 8.8e-4 * P_P N (pressure dependent, section 4.4.6; neglected in eq. 4.91).
 

@@ -70,6 +70,13 @@ class RackPinion(Component):
 
 class LeverParams(Params):
     i: float = Field(..., ge=-100.0, le=100.0, description="Ratio x_b / x_a [-]")
+
+    @field_validator("i")
+    @classmethod
+    def _nonzero(cls, value):
+        if value == 0.0:
+            raise ValueError("the ratio i must not be 0 (b would be held and a free)")
+        return value
     k: float | None = Field(None, gt=0.0, le=1e12,
                             description="Stiffness at b [N/m]; None: ideal, rigid lever")
     d: float = Field(0.0, ge=0.0, le=1e9, description="Damping at b [N s/m] (with k)")

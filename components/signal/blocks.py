@@ -27,7 +27,7 @@ inputs; chain them for more.
 
 from __future__ import annotations
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from pvgraph import expr as E
 from pvgraph.component import Component, Params, SignalIn, SignalOut, Variable, der
@@ -167,7 +167,9 @@ class Integrator(Component):
 
 
 class PIDParams(Params):
-    Kp: float = Field(1.0, ge=0.0, le=1e12, description="Proportional gain [unit of y / unit of e]")
+    Kp: float = Field(1.0, ge=0.0, le=1e12,
+                      description="Proportional gain [unit of y / unit of e]; the gains are "
+                                  ">= 0: for a reverse-acting loop swap r and m")
     Ki: float = Field(0.0, ge=0.0, le=1e12,
                       description="Integral gain [unit of y / (unit of e * s)]; 0: no integral "
                                   "term")
@@ -187,12 +189,23 @@ class PIDParams(Params):
     I0: float = Field(0.0, ge=-1e12, le=1e12,
                       description="Initial integral term [unit of y]")
 
+    @field_validator("Kp", "Ki", "Kd", mode="before")
+    @classmethod
+    def _not_negative(cls, value):
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and value < 0:
+            raise ValueError("the gains are >= 0; for a reverse-acting loop swap r and m, or "
+                             "follow the controller with Gain(k=-1)")
+        return value
+
     @model_validator(mode="after")
     def _limits(self):
         if self.y_min is not None and self.y_max is not None and not self.y_min < self.y_max:
             raise ValueError(f"y_min ({self.y_min!r}) must be below y_max ({self.y_max!r})")
         if self.Kp == 0.0 and self.Ki == 0.0 and self.Kd == 0.0:
             raise ValueError("Kp, Ki and Kd are all 0: the controller's output would be 0")
+        if self.I0 != 0.0 and self.Ki == 0.0:
+            raise ValueError(f"I0 = {self.I0!r} starts an integral term, but Ki = 0: there is "
+                             f"none (give Ki > 0, or leave I0 at 0)")
         return self
 
 

@@ -276,3 +276,8 @@ def test_a_lossy_gear_never_makes_energy_and_passes_the_ideal_torque_at_rest():
     c.connect("g.b", "jb.shaft", "s.a")
     c.connect("s.b", "gnd.shaft")
     assert steady_state(c.compile())["s.a.tau"] == pytest.approx(6.0, rel=1e-9)
+
+
+def test_lever_ratio_zero_is_refused_by_name():
+    with pytest.raises(ParameterError, match=r"i = 0.*must not be 0"):
+        Lever(i=0.0)

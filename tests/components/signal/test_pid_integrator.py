@@ -96,3 +96,11 @@ def test_limited_pid_saturates_and_back_calculation_stops_windup():
 def test_bad_pid_parameters_name_the_field(kwargs, field):
     with pytest.raises(ParameterError, match=field):
         PID(**kwargs)
+
+
+def test_a_start_of_an_absent_integral_and_a_negative_gain_are_refused_with_the_way_out():
+    with pytest.raises(ParameterError, match=r"I0 = 0.7 starts an integral term, but Ki = 0"):
+        PID(Kp=1.0, I0=0.7)
+    with pytest.raises(ParameterError, match=r"Kp = -1.0: the gains are >= 0; for a "
+                                             r"reverse-acting loop swap r and m"):
+        PID(Kp=-1.0)
