@@ -1224,11 +1224,17 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
                 if not isinstance(k, float):
                     reads = f"{E.to_text(k)} = {value!r}"
                     what += " (it constrains parameters only)"
+                cause = ("This happens when two sources fix the same quantity (two pressure "
+                         "sources on one node, flow sources in series, a port closed twice). "
+                         "Remove one of them.")
+                if abs(value) > 0 and any(t in eq.label for t in ("sum of f ", "sum of tau ")):
+                    cause = ("A force or torque acts on a node that nothing holds: no mass or "
+                             "inertia to accelerate, no spring, damper or fixed end to take it "
+                             "(a free end, a gear or lever with nothing behind it). Put a Mass "
+                             "or an Inertia there, or the load the force works against. " + cause)
                 raise StructureError(
                     f"{eq.label} {what}: after fixing the variables the other equations determine, "
-                    f"it reads {reads} = 0. This happens when two sources fix the same quantity "
-                    f"(two pressure sources on one node, flow sources in series, a port closed "
-                    f"twice). Remove one of them.")
+                    f"it reads {reads} = 0. {cause}")
             if len(coeffs) == 1:
                 (v, a), = coeffs.items()
                 if not isinstance(a, float):

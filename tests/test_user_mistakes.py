@@ -628,3 +628,17 @@ def test_steady_pressure_below_the_vapour_pressure_is_warned_of():
                                                  r"is -2.36\d* bar gauge \(-1.35 bar absolute\)"):
         op = steady_state(c.compile())
     assert op["n.port.p"] < -2e5
+
+
+def test_a_torque_on_a_node_that_nothing_holds_is_told_so():
+    from pvgraph.components.mechanical import Gear, RotationalFree, TorqueSource
+    from pvgraph.errors import StructureError
+    c = Circuit("a")
+    c.add("T", TorqueSource(T=1.0))
+    c.add("g", Gear(i=2.0))
+    c.add("fr", RotationalFree())
+    c.connect("T.shaft", "g.a")
+    c.connect("g.b", "fr.shaft")
+    with pytest.raises(StructureError, match=r"sum of tau is zero contradicts .* A force or "
+                                             r"torque acts on a node that nothing holds"):
+        c.compile()
