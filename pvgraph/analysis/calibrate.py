@@ -197,8 +197,12 @@ class CalibrationResult:
         lines = [head, "-" * len(head)]
         for k, p in enumerate(self.parameters):
             lo, hi = self.ci_low[k], self.ci_high[k]
-            ci = (f"[{p.shown(lo):9.4g}, {p.shown(hi):9.4g}]" if np.isfinite(lo) and
-                  np.isfinite(hi) else "not identifiable")
+            if np.isfinite(lo) and np.isfinite(hi):
+                ci = f"[{p.shown(lo):9.4g}, {p.shown(hi):9.4g}]"
+            elif p.name in self.unidentifiable:
+                ci = "not identifiable"
+            else:
+                ci = "no degree of freedom"
             row = (f"{p.name:28s} {p.unit:>10s} {p.shown(p.initial):10.4g} "
                    f"{p.shown(self.estimates[k]):10.4g} {ci:>23s}")
             if reference:
@@ -211,6 +215,9 @@ class CalibrationResult:
                      f"{self.wall_time:.1f} s")
         if self.unidentifiable:
             lines.append("not identifiable from these data: " + ", ".join(self.unidentifiable))
+        if self.dof <= 0 and not np.all(np.isfinite(self.ci_low)):
+            lines.append("as many data as parameters: the residuals cannot tell the data's "
+                         "scatter; give sigma with absolute_sigma=True for intervals")
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
@@ -497,8 +504,10 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
     inv = np.where(keep, 1.0 / np.where(keep, sv, 1.0) ** 2, 0.0)
     cov = ((Vt.T * inv) @ Vt) / np.outer(col, col) * np.outer(scale, scale)   # physical
     weak = ((Vt[~keep] ** 2).sum(axis=0) > 1e-3) if np.any(~keep) else np.zeros(n, bool)
-    s2 = 2.0 * cost / dof if (dof > 0 and not absolute_sigma) else 1.0
-    cov = cov * s2
+    # sigma estimated from the residuals needs a degree of freedom; without one the scatter
+    # is unknown and so are the intervals (not sigma = 1)
+    s2 = 1.0 if absolute_sigma else (2.0 * cost / dof if dof > 0 else math.inf)
+    cov = cov * s2 if math.isfinite(s2) else np.full_like(cov, math.inf)
     cov[weak, :] = np.inf
     cov[:, weak] = np.inf
     std = np.sqrt(np.diag(cov))

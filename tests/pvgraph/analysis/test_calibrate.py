@@ -254,3 +254,21 @@ def test_an_offset_started_at_zero_is_identifiable_with_the_linear_theory_interv
                         sigma=50.0, absolute_sigma=True)
         assert res.unidentifiable == []
         np.testing.assert_allclose(res.std_errors, theory, rtol=1e-4)
+
+
+def test_as_many_data_as_parameters_gives_no_interval_and_says_why():
+    x = np.array([1.0, 2.0])
+    res = calibrate(lambda th: th["a"] * x + th["b"], [4.0, 7.0],
+                    [FitParameter("a", 1.0), FitParameter("b", 0.5)])
+    assert res.estimates == pytest.approx([3.0, 1.0], rel=1e-6)
+    assert res.dof == 0 and res.unidentifiable == []
+    assert np.all(np.isinf(res.std_errors))
+    table = res.table()
+    assert "no degree of freedom" in table and "not identifiable" not in table
+    assert "give sigma with absolute_sigma=True" in table
+    known = calibrate(lambda th: th["a"] * x + th["b"], [4.0, 7.0],
+                      [FitParameter("a", 1.0), FitParameter("b", 0.5)], sigma=0.1,
+                      absolute_sigma=True)
+    X = np.column_stack([x, np.ones(2)])
+    np.testing.assert_allclose(known.std_errors, 0.1 * np.sqrt(np.diag(np.linalg.inv(X.T @ X))),
+                               rtol=1e-4)
