@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence
 
@@ -519,6 +520,13 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
         tq = math.inf
     half = tq * std
     unident = [names[k] for k in np.flatnonzero(weak)]
+    for k, prm in enumerate(params):
+        for bound, side in ((prm.lower, "lower"), (prm.upper, "upper")):
+            if np.isfinite(bound) and abs(theta[k] - bound) <= 1e-6 * max(abs(bound),
+                                                                         scale[k]):
+                warnings.warn(f"calibrate: {prm.name} ends on its {side} bound {bound!r}: the "
+                              f"data may want it beyond, and its interval (which assumes a free "
+                              f"parameter) means little there", UserWarning, stacklevel=2)
     wall = time.perf_counter() - t0
     return CalibrationResult(
         parameters=params, estimates=theta, std_errors=std, ci_low=theta - half,

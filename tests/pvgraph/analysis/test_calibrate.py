@@ -272,3 +272,11 @@ def test_as_many_data_as_parameters_gives_no_interval_and_says_why():
     X = np.column_stack([x, np.ones(2)])
     np.testing.assert_allclose(known.std_errors, 0.1 * np.sqrt(np.diag(np.linalg.inv(X.T @ X))),
                                rtol=1e-4)
+
+
+def test_an_estimate_on_its_bound_is_warned_of():
+    x = np.linspace(0.0, 1.0, 5)
+    with pytest.warns(UserWarning, match=r"a ends on its upper bound 2.0"):
+        res = calibrate(lambda th: th["a"] * x, 3.0 * x,
+                        [FitParameter("a", 1.0, lower=0.0, upper=2.0)])
+    assert res.estimates[0] == pytest.approx(2.0, rel=1e-6)
