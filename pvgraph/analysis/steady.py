@@ -598,7 +598,9 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
              "speeds it up for ever)." if any(u == "rad" for u in system.units) else ".") +
             (" A load that comes to rest against an end stop is held only in contact: start "
              "its mass at the stop (x0), or from the end of a settling run, "
-             "steady_state(system, y0=sol.y[-1])." if any(
+             "steady_state(system, y0=sol.y[-1]). A mass that keeps moving at a steady speed "
+             "(a force against a damper) has no steady position: steady_state looks for rest "
+             "(only shaft angles may turn on); simulate it to its steady speed." if any(
                  u == "m" and nm.endswith(".x") for u, nm in zip(system.units, system.names))
              else ""))
     yp1 = np.zeros(system.n)
