@@ -46,8 +46,6 @@ state below full stroke the margin lies within ``[dp_ls - dp_reg, dp_ls]``.
 
 from __future__ import annotations
 
-import math
-
 from pydantic import Field
 
 from pvgraph import expr as E

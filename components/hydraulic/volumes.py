@@ -36,7 +36,6 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from pvgraph import expr as E
 from pvgraph.component import Component, Hydraulic, Mechanical, Params, der
 from pvgraph.laws import smooth_max
 
