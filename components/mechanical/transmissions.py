@@ -36,7 +36,7 @@ gear holding its load) is not modelled.
 
 from __future__ import annotations
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 
 from pvgraph import expr as E
 from pvgraph.component import Component, Mechanical, Params, der
@@ -47,11 +47,23 @@ from .rotational import Rotational
 __all__ = ["RackPinion", "Lever", "Gear"]
 
 
+def _damping_needs_stiffness(params):
+    """A mesh damping acts across the mesh's compliance: without a stiffness there is none."""
+    if params.k is None and params.d != 0.0:
+        raise ValueError(f"d = {params.d!r} damps the mesh's deflection, but k is None (rigid): "
+                         f"give k, or leave d at 0")
+    return params
+
+
 class RackPinionParams(Params):
     r: float = Field(..., gt=0.0, le=10.0, description="Pinion pitch radius [m]")
     k: float | None = Field(None, gt=0.0, le=1e12,
                             description="Mesh stiffness [N/m]; None: ideal, rigid teeth")
     d: float = Field(0.0, ge=0.0, le=1e9, description="Mesh damping [N s/m] (with k)")
+
+    @model_validator(mode="after")
+    def _mesh(self):
+        return _damping_needs_stiffness(self)
 
 
 class RackPinion(Component):
@@ -80,6 +92,10 @@ class LeverParams(Params):
     k: float | None = Field(None, gt=0.0, le=1e12,
                             description="Stiffness at b [N/m]; None: ideal, rigid lever")
     d: float = Field(0.0, ge=0.0, le=1e9, description="Damping at b [N s/m] (with k)")
+
+    @model_validator(mode="after")
+    def _mesh(self):
+        return _damping_needs_stiffness(self)
 
 
 class Lever(Component):
@@ -116,6 +132,10 @@ class GearParams(Params):
         if value == 0.0:
             raise ValueError("the ratio i must not be 0 (b could not turn)")
         return value
+
+    @model_validator(mode="after")
+    def _mesh(self):
+        return _damping_needs_stiffness(self)
 
 
 class Gear(Component):

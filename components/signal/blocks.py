@@ -206,6 +206,10 @@ class PIDParams(Params):
         if self.I0 != 0.0 and self.Ki == 0.0:
             raise ValueError(f"I0 = {self.I0!r} starts an integral term, but Ki = 0: there is "
                              f"none (give Ki > 0, or leave I0 at 0)")
+        if self.Tt is not None and (self.Ki == 0.0 or (self.y_min is None and
+                                                       self.y_max is None)):
+            raise ValueError("Tt tracks the integral while the output is limited: it needs "
+                             "Ki > 0 and y_min or y_max")
         return self
 
 

@@ -281,3 +281,14 @@ def test_a_lossy_gear_never_makes_energy_and_passes_the_ideal_torque_at_rest():
 def test_lever_ratio_zero_is_refused_by_name():
     with pytest.raises(ParameterError, match=r"i = 0.*must not be 0"):
         Lever(i=0.0)
+
+
+@pytest.mark.parametrize("make", [lambda d: __import__("pvgraph.components.mechanical",
+                                                       fromlist=["Gear"]).Gear(i=2.0, d=d),
+                                  lambda d: Lever(i=2.0, d=d),
+                                  lambda d: RackPinion(r=0.05, d=d)])
+def test_a_mesh_damping_without_a_stiffness_is_refused(make):
+    with pytest.raises(ParameterError, match=r"d = 1.0 damps the mesh's deflection, but k is "
+                                             r"None"):
+        make(1.0)
+    make(0.0)

@@ -104,3 +104,18 @@ def test_a_start_of_an_absent_integral_and_a_negative_gain_are_refused_with_the_
     with pytest.raises(ParameterError, match=r"Kp = -1.0: the gains are >= 0; for a "
                                              r"reverse-acting loop swap r and m"):
         PID(Kp=-1.0)
+
+
+def test_a_tracking_time_without_its_integral_or_limits_is_refused():
+    with pytest.raises(ParameterError, match=r"Tt tracks the integral .* needs Ki > 0 and "
+                                             r"y_min or y_max"):
+        PID(Kp=1.0, Tt=0.1)
+    PID(Kp=1.0, Ki=1.0, y_max=1.0, Tt=0.1)
+
+
+def test_a_pid_round_trips_through_a_model_file(tmp_path):
+    from pvgraph.modelfile import load, save
+    c = _loop(PID(Kp=0.8, Ki=3.0, y_min=-1.0, y_max=1.0))
+    save(c, tmp_path / "loop.toml")
+    back = load(tmp_path / "loop.toml")
+    assert back["pid"].params == c["pid"].params
