@@ -760,8 +760,9 @@ def cmd_linearize(args) -> int:
                                                   for i, n in enumerate(outputs)}})
         print(f"wrote {args.json} (SI)")
     if args.bode:
+        from .analysis.linearize import _frequency_grid
         from .plotting import plot_bode
-        w = _bode_grid(poles)
+        w = _frequency_grid(poles, 100)
         mags, phases, labels = [], [], []
         for i, n in enumerate(outputs):
             for j, u in enumerate(args.input):
@@ -783,15 +784,6 @@ def _per(out_unit: str, in_unit: str) -> str:
         return out_unit
     return f"{out_unit}/({in_unit})" if any(c in in_unit for c in " /*^") else \
         f"{out_unit}/{in_unit}"
-
-
-def _bode_grid(poles):
-    """Angular frequencies [rad/s] for a Bode plot: two decades either side of the poles'
-    natural frequencies (0.1-1000 rad/s where there are none)."""
-    import numpy as np
-    wn = np.abs(poles[np.abs(poles) > 0]) if len(poles) else np.zeros(0)
-    lo, hi = (wn.min() / 100.0, wn.max() * 100.0) if wn.size else (0.1, 1000.0)
-    return np.logspace(np.log10(lo), np.log10(max(hi, 10.0 * lo)), 400)
 
 
 # --------------------------------------------------------------------------------------------

@@ -604,25 +604,13 @@ _BOUNDS = {"greater_than": ("gt", "greater than"), "greater_than_equal": ("ge", 
 def _start_number(cls, key: str, value) -> float:
     """A start value override as an SI float: a number, or a quantity with a unit
     (``"50 bar"``) converted to the variable's unit; anything else is named."""
-    from .units import to_unit
+    from .units import number_in
     if key in cls.variables:
         unit = cls.variables[key].unit
     else:
         port = cls.ports[key.split(".")[0]]
         unit = port.domain.across_unit if port.domain is not SIGNAL else ""
-    what = f"{cls.__name__} start value {key!r}"
-    if isinstance(value, bool):
-        raise ParameterError(f"{what} = {value!r}: give a number")
-    try:
-        number = float(to_unit(value, unit or "1", what))
-    except (TypeError, ValueError) as exc:
-        if isinstance(exc, ParameterError):
-            raise
-        raise ParameterError(f"{what} = {value!r}: give a number, or one with a unit "
-                             f"[{unit or '-'}]") from None
-    if not math.isfinite(number):
-        raise ParameterError(f"{what} = {value!r} is not finite")
-    return number
+    return number_in(value, unit, f"{cls.__name__} start value {key!r}")
 
 
 def _describe_validation(where: str, exc: ValidationError, fields=(), given=None,

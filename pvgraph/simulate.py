@@ -312,10 +312,7 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
                   jac=system.solver_jacobian(), jac_sparsity=system.jac_sparsity,
                   events=system._run_events() or None, t_eval=t_eval, max_step=max_step,
                   calc_initial=calc_initial, var_names=system.names, **options)
-    if solver == "pvgraph":
-        from .solver import solve_dae as solve
-    else:
-        from .solver import solve_dae_sundials as solve
+    solve = _solver_function(solver)
     try:
         res = solve(system.residual, (t_start, t_end), y_init, yp_init, **kwargs)
     except SolverError as exc:
@@ -350,15 +347,21 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     return sol
 
 
+def _solver_function(solver):
+    """``solve_dae`` or ``solve_dae_sundials`` by the name ``simulate`` takes."""
+    if solver == "pvgraph":
+        from .solver import solve_dae
+        return solve_dae
+    from .solver import solve_dae_sundials
+    return solve_dae_sundials
+
+
 def _check_options(options, solver) -> None:
     """Refuse an option the chosen solver does not take, with the closest names (the
     solver would say only that its own function got an unexpected keyword)."""
     import difflib
     import inspect
-    if solver == "pvgraph":
-        from .solver import solve_dae as solve
-    else:
-        from .solver import solve_dae_sundials as solve
+    solve = _solver_function(solver)
     own = {"t_span", "y0", "yp0", "residual", "rtol", "atol", "algebraic", "jac",
            "jac_sparsity", "events", "t_eval", "max_step", "calc_initial", "var_names"}
     taken = (set(inspect.signature(solve).parameters) - own) | {"recompile"}
@@ -474,23 +477,8 @@ def _check_starts_kept(sol, given) -> None:
 
 def _start_value(system, name, value) -> float:
     """A start value in SI: a number, or a quantity in the variable's unit (``"50 bar"``)."""
-    from .units import UnitError, to_unit
-    if isinstance(value, bool):
-        raise PvgraphError(f"start value for {name!r}: {value!r} is not a number")
-    if isinstance(value, (int, float, np.integer, np.floating)):
-        number = float(value)
-    else:
-        unit = system.unit(name) or "-"
-        try:
-            number = to_unit(value, unit, f"start value for {name!r}")
-        except UnitError as exc:
-            raise PvgraphError(str(exc)) from None
-        if not isinstance(number, (int, float)):
-            raise PvgraphError(f"start value for {name!r}: {value!r} is not a number or a "
-                               f"quantity ('50 bar')")
-    if not math.isfinite(number):
-        raise PvgraphError(f"start value for {name!r} is not finite: {value!r}")
-    return float(number)
+    from .units import number_in
+    return number_in(value, system.unit(name) or "-", f"start value for {name!r}")
 
 
 def _check_pressures(sol: Solution) -> None:

@@ -372,6 +372,37 @@ def to_unit(value, unit: str, what: str = "value") -> float:
     return si / factor
 
 
+def to_si(value, what: str = "value") -> float:
+    """``value`` in SI units: a number as it is, a quantity (``"6 L/min"``, a pint Quantity)
+    converted by its own unit (its dimension is not checked: no unit is expected here)."""
+    if _is_pint(value):
+        return float(_pint_si(value)[0])
+    if isinstance(value, str):
+        m = _NUMBER.match(value)
+        if not m:
+            raise UnitError(f"{what} = {value!r}: {value!r} is not a number (write a number, "
+                            f"or one with a unit, e.g. '150 bar')")
+        return float(m.group(1)) * (_parse(m.group(2))[0] if m.group(2) else 1.0)
+    return value
+
+
+def number_in(value, unit: str, what: str = "value") -> float:
+    """``value`` as a finite float in ``unit``: a number as it is, a quantity (``"50 bar"``, a
+    pint Quantity) converted; a bool, anything else or a non-finite value is refused, naming
+    ``what``."""
+    if isinstance(value, bool):
+        raise ParameterError(f"{what} = {value!r}: give a number")
+    number = to_unit(value, unit or "1", what)
+    try:
+        number = float(number)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{what} = {value!r}: give a number, or one with a unit "
+                             f"[{unit or '-'}]") from None
+    if not math.isfinite(number):
+        raise ParameterError(f"{what} is not finite: {value!r}")
+    return number
+
+
 def _angle_reading(si, dim, got_angle, angle, what, shown, unit):
     """``si`` of a quantity whose angle power differs from the declared unit's.
 

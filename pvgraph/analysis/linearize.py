@@ -602,19 +602,16 @@ def _check_linear_outputs(system, outputs) -> None:
 def _si_number(value, what: str) -> float:
     """An input value as an SI float: a number, or a quantity with a unit ("6 L/min")
     converted to SI; the inputs are differenced, so anything else is refused by name."""
-    from ..units import _parse, is_quantity, _is_pint, _pint_si, _NUMBER
-    if isinstance(value, bool):
-        raise PvgraphError(f"{what} = {value!r}: give a number")
-    if isinstance(value, (int, float, np.integer, np.floating)):
-        if not math.isfinite(float(value)):
-            raise PvgraphError(f"{what} = {value!r} is not finite")
-        return float(value)
-    if _is_pint(value):
-        return float(_pint_si(value)[0])
-    if isinstance(value, str) and is_quantity(value):
-        m = _NUMBER.match(value)
-        if m:
-            return float(m.group(1)) * (_parse(m.group(2))[0] if m.group(2) else 1.0)
+    from ..units import to_si
+    if not isinstance(value, bool):
+        try:
+            value = to_si(value, what)
+        except PvgraphError:
+            pass
+        if isinstance(value, (int, float, np.integer, np.floating)):
+            if not math.isfinite(float(value)):
+                raise PvgraphError(f"{what} = {value!r} is not finite")
+            return float(value)
     raise PvgraphError(f"{what} = {value!r}: give a number (SI) or a quantity with a unit "
                        f"('6 L/min')")
 

@@ -220,11 +220,10 @@ def limited_start(system, t, y, yp, tol=1e-9):
     view = _StartView(system, t, y)
     z = np.asarray(y, dtype=float).copy()
     z[~view.alg] = np.asarray(yp, dtype=float)[~view.alg]
-    sc = _Scaled(view, t, z)
-    z1, fn, _, _ = _newton(sc, z, tol, LIMITED_MAX_ITER, limited=True)
+    z1, fn, _, _ = _newton(_Scaled(view, t, z), z, tol, LIMITED_MAX_ITER, limited=True)
     if not np.isfinite(fn):
         return None
-    z2, fn2, _, ok = _newton(_Scaled(view, t, z1), z1, tol, 50)
+    _, z2, _, ok, _ = _rescaled(view, t, z1, tol, 50)
     return view.split(z2) if ok else None
 
 
@@ -424,6 +423,17 @@ def _newton(sc, y, tol, max_iter, c=0.0, y_prev=None, limited=False):
     return y, fn, max_iter, fn <= tol
 
 
+def _rescaled(problem, t, y, tol, max_iter, polish=True):
+    """``(scaling, y, norm, converged, iterations)`` with the rows scaled at ``y``: ``y`` as
+    it is where its residual is within ``tol`` so scaled, else (``polish``) after Newton."""
+    sc = _Scaled(problem, t, y)
+    fn = sc.norm(y)
+    if fn <= tol or not polish:
+        return sc, y, fn, fn <= tol, 0
+    y2, fn2, its, ok = _newton(sc, y.copy(), tol, max_iter)
+    return sc, y2, fn2, ok, its
+
+
 def _continuation(sc, y, tol, max_steps=400, dtau0=1e-6, dtau_max=1e6, newton_iters=8):
     """Pseudo-transient continuation: implicit Euler steps with growing ``dtau``."""
     dtau = dtau0
@@ -537,30 +547,24 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
     y1, fn, its, ok = _newton(sc, y.copy(), tol, max_iter)
     method = "newton"
     total = its
+    # After each stage that misses, the rows are scaled again where it stopped: they were
+    # scaled by their slopes at the start, which can be far smaller than at the answer (a
+    # valve closed at the start: its flow's slope is its leakage's; a rod carried onto its end
+    # stop: the stop's stiffness), so a residual at rounding level is seen as such there.
     if not ok and np.isfinite(fn):
-        # the rows were scaled by their slopes at the start, which can be far smaller than
-        # at the answer (a valve closed at the start: its flow's slope is its leakage's):
-        # scaled again where Newton stopped, a residual at rounding level is seen as such
-        sc_here = _Scaled(problem, t, y1)
-        fn_here = sc_here.norm(y1)
-        if fn_here <= tol:
-            sc, fn, ok = sc_here, fn_here, True
-        else:
-            y2, fn2, its2, ok2 = _newton(sc_here, y1.copy(), tol, max_iter)
-            total += its2
-            if ok2:
-                sc, y1, fn, ok = sc_here, y2, fn2, True
+        here = _rescaled(problem, t, y1, tol, max_iter)
+        total += here[4]
+        if here[3]:
+            sc, y1, fn, ok = here[:4]
     if not ok and continuation:
         y2, steps = _continuation(sc, y.copy(), tol)
         y1, fn, its, ok = _newton(sc, y2, tol, max_iter)
         total += steps + its
         method = "continuation"
         if not ok and np.isfinite(fn):
-            # as after Newton: the rows scaled where continuation ended (a rod carried onto
-            # its end stop: the stop's stiffness was not in the rows' scales at the start)
-            sc_here = _Scaled(problem, t, y1)
-            if sc_here.norm(y1) <= tol:
-                sc, fn, ok = sc_here, sc_here.norm(y1), True
+            here = _rescaled(problem, t, y1, tol, max_iter, polish=False)
+            if here[3]:
+                sc, y1, fn, ok = here[:4]
     if not ok:
         # valves closed at the start, with no volume to make continuation's steps gentle
         # (a flow source straight into a check valve that cracks at 50 bar): Newton with
@@ -568,25 +572,22 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
         y2, fn2, its2, _ = _newton(sc, y.copy(), tol, LIMITED_MAX_ITER, limited=True)
         total += its2
         if np.isfinite(fn2):
-            sc_here = _Scaled(problem, t, y2)
-            y3, fn3, its3, ok3 = _newton(sc_here, y2, tol, max_iter)
-            total += its3
-            if ok3:
-                sc, y1, fn, ok, method = sc_here, y3, fn3, True, "limited newton"
+            here = _rescaled(problem, t, y2, tol, max_iter)
+            total += here[4]
+            if here[3]:
+                (sc, y1, fn, ok), method = here[:4], "limited newton"
     if not ok and continuation:
         # a load carried onto its end stop: the implicit Euler step that meets the stop's
         # stiffness needs more Newton iterations than a step in free travel
         y2, steps = _continuation(sc, y.copy(), tol, newton_iters=CONTACT_NEWTON_ITERS)
         y3, fn3, its3, ok3 = _newton(sc, y2, tol, max_iter)
         total += steps + its3
-        if not ok3 and np.isfinite(fn3):
-            sc_here = _Scaled(problem, t, y3)
-            fn3 = sc_here.norm(y3)
-            ok3 = fn3 <= tol
-            if ok3:
-                sc = sc_here
         if ok3:
             y1, fn, ok, method = y3, fn3, True, "continuation"
+        elif np.isfinite(fn3):
+            here = _rescaled(problem, t, y3, tol, max_iter, polish=False)
+            if here[3]:
+                (sc, y1, fn, ok), method = here[:4], "continuation"
     if not ok:
         lines = _culprits(problem, sc, y1)
         raise InitializationError(
