@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
-from scipy.sparse import csc_matrix
+from scipy.sparse import csc_matrix, csr_matrix
 
 from . import codegen
 from . import expr as E
@@ -195,6 +195,8 @@ class System:
             for g, P in zip(part.groups, self._vecP):
                 Y, YP, D = g.gather(y, yp, modes)
                 out[g.rows] = g.res_fn(t, Y, YP, D, P)[0]
+            if part.linear is not None:
+                out += part.linear.residual(y, yp)
         return _nan_where_not_finite(out)
 
     def _array_jacobian(self, t, y, yp, c):
@@ -210,6 +212,8 @@ class System:
                 Y, YP, D = g.gather(y, yp, modes)
                 for pos, vals in zip(g.jac_pos, g.jac_fn(t, Y, YP, D, P, c)):
                     out[pos] = vals
+        if part.linear is not None:
+            out[part.linear.pos] = part.linear.jacobian(c)
         return _nan_where_not_finite(out)
 
     def jacobian(self, t, y, yp, c):
@@ -1290,15 +1294,24 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
         return out, blocks
 
     groups, scalar_rows = _array_groups(raw, array_rows, compiled_leaf, shapes_of=shapes_of)
-    if groups:
-        scalar_res = E.substitute([raw[i] for i in scalar_rows], leaf)
-    else:
-        scalar_res = E.substitute(raw, leaf)
+    scalar_raw = [raw[i] for i in scalar_rows] if groups else list(raw)
+    # long sums of unknowns with constant coefficients (the flow balance of a node joining many
+    # ports) are kept as a sparse matrix rather than as straight-line code; rows -> {column:
+    # [dF/dy, dF/dy']} of those terms, the rest of the row staying in scalar_raw
+    linear: dict[int, dict] = {}
+    if array_rows is True or (array_rows is None and len(raw) >= ARRAY_MIN_ROWS):
+        for k, i in enumerate(scalar_rows):
+            got = _split_linear(scalar_raw[k], index, subs)
+            if got is not None:
+                scalar_raw[k], linear[i] = got
+    scalar_res = E.substitute(scalar_raw, leaf)
+    del scalar_raw
 
     # every partial derivative of a row in one reverse pass over it
     inc_y: list = [None] * len(raw)
     inc_yp: list = [None] * len(raw)
     entries = []
+    lin_entries: list = []    # (row, column, dF/dy, dF/dy') of the sparse sums, constants
     for i, r in zip(scalar_rows, scalar_res):
         grads = E.gradient(r, ("y", "yp"))
         dy, dyp = {}, {}
@@ -1307,8 +1320,23 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
                 dy[k] = d
             else:
                 dyp[k] = d
-        inc_y[i] = sorted(dy)
-        inc_yp[i] = sorted(dyp)
+        terms = linear.get(i)
+        if terms:
+            # a column the rest of the row reads takes the constant into its expression;
+            # the others are constant entries of their own
+            for j, (a, b) in terms.items():
+                if j in dy or j in dyp:
+                    if a:
+                        dy[j] = dy.get(j, E.ZERO) + a
+                    if b:
+                        dyp[j] = dyp.get(j, E.ZERO) + b
+                    continue
+                lin_entries.append((i, j, a, b))
+            inc_y[i] = sorted(dy.keys() | {j for j, (a, _) in terms.items() if a})
+            inc_yp[i] = sorted(dyp.keys() | {j for j, (_, b) in terms.items() if b})
+        else:
+            inc_y[i] = sorted(dy)
+            inc_yp[i] = sorted(dyp)
         for j in sorted(dy.keys() | dyp.keys()):
             d = dy.get(j, E.ZERO)
             if j in dyp:
@@ -1323,7 +1351,8 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     differential[np.fromiter(itertools.chain.from_iterable(inc_yp), dtype=np.int64)] = True
     check_structure(names, labels, inc_y, inc_yp, differential)
     del inc_y, inc_yp
-    if not groups:
+    arrays = bool(groups or linear)
+    if not arrays:
         entries.sort(key=lambda en: (en.col, en.row))
 
     # events: repeated shapes as arrays too
@@ -1358,10 +1387,13 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     observed_fn = None   # generated when first needed (results are often read by name only)
     sources = [der_src, res_src, jac_src, ev_src]
 
-    if groups:
-        rows, cols, vector = _array_layout(entries, groups, scalar_rows)
+    if arrays:
+        rows, cols, vector = _array_layout(entries, groups, scalar_rows, lin_entries,
+                                           len(names))
         for k, g in enumerate(groups):
             sources.append(g.generate(f"{k}", labels))
+        if linear:
+            sources.append(_linear_source(linear, labels, names))
     else:
         rows, cols, vector = [en.row for en in entries], [en.col for en in entries], None
     ev_vector = None
@@ -1388,7 +1420,7 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
     system._tables = tables
     system._derive = derive_fn
     system._nbase = base
-    if not groups and not ev_groups:   # the C route (pvgraph.cbackend) writes these
+    if not arrays and not ev_groups:   # the C route (pvgraph.cbackend) writes these
         system._lazy["c_exprs"] = (res_h, jac_h, ev_h)
     system._update_derived()
     # for dF/dp, numbered and differentiated when first asked
@@ -1409,6 +1441,8 @@ def build_system(name, equations, infos, subs, observed, events, mode_names, mod
 ARRAY_MIN_ROWS = 1000
 #: ... a shape shared by at least this many rows
 ARRAY_MIN_GROUP = 32
+#: ... and a sum of at least this many unknowns with constant coefficients as a sparse matrix
+LINEAR_MIN_TERMS = 32
 
 
 class _ArrayRows:
@@ -1601,6 +1635,7 @@ class _ArrayPart:
         self.scalar_rows = scalar_rows
         self.scalar_pos = scalar_pos
         self.uses_modes = any(g.index["mode"] for g in groups)
+        self.linear = None      # _SparseSums, if any
 
 
 def _array_groups(exprs, array_rows, leaf_of=None, n_rows=None, shapes_of=None):
@@ -1654,14 +1689,18 @@ def _array_groups(exprs, array_rows, leaf_of=None, n_rows=None, shapes_of=None):
     return groups, scalar
 
 
-def _array_layout(entries, groups, scalar_rows):
-    """The Jacobian pattern (CSC order) of scalar entries and groups, and where each goes."""
+def _array_layout(entries, groups, scalar_rows, lin_entries=(), n=0):
+    """The Jacobian pattern (CSC order) of scalar entries, groups and the constant entries of
+    sparse sums (``(row, column, dF/dy, dF/dy')``, ``n`` unknowns), and where each goes."""
     rows = [np.array([en.row for en in entries], dtype=np.int64)]
     cols = [np.array([en.col for en in entries], dtype=np.int64)]
     for g in groups:
         for kind, s in g.columns:
             rows.append(g.rows)
             cols.append(g.index[kind][s])
+    lin = np.array(lin_entries, dtype=float).reshape(-1, 4)
+    rows.append(lin[:, 0].astype(np.int64))
+    cols.append(lin[:, 1].astype(np.int64))
     all_rows, all_cols = np.concatenate(rows), np.concatenate(cols)
     order = np.lexsort((all_rows, all_cols))
     pos = np.empty(len(order), dtype=np.int64)
@@ -1672,4 +1711,99 @@ def _array_layout(entries, groups, scalar_rows):
             g.jac_pos.append(pos[start:start + len(g.rows)])
             start += len(g.rows)
     part = _ArrayPart(groups, np.asarray(scalar_rows, dtype=np.int64), pos[:len(entries)])
+    if len(lin):
+        part.linear = _SparseSums(lin, n, pos[start:])
     return all_rows[order], all_cols[order], part
+
+
+class _SparseSums:
+    """The terms ``a y[j] + b y'[j]`` (``a``, ``b`` numbers) of long sums, as sparse matrices
+    ``A`` and ``B``: the residual adds ``A y + B y'``, the Jacobian holds ``a + c b`` at
+    ``pos``."""
+
+    def __init__(self, lin, n, pos):
+        r, j = lin[:, 0].astype(np.int64), lin[:, 1].astype(np.int64)
+        self.A = csr_matrix((lin[:, 2], (r, j)), shape=(n, n))
+        self.B = csr_matrix((lin[:, 3], (r, j)), shape=(n, n))
+        self.B.eliminate_zeros()
+        self.has_b = self.B.nnz > 0
+        self.a, self.b, self.pos = lin[:, 2].copy(), lin[:, 3].copy(), pos
+
+    def residual(self, y, yp):
+        return self.A @ y + self.B @ yp if self.has_b else self.A @ y
+
+    def jacobian(self, c):
+        return self.a + c * self.b if self.has_b else self.a
+
+
+def _split_linear(row, index, subs):
+    """``(rest, terms)``: ``row`` as ``rest + sum_j (a_j y[j] + b_j y'[j])`` with numbers
+    ``a_j``, ``b_j`` (``terms[j] = [a_j, b_j]``), or None where the row's top-level sum has
+    fewer than :data:`LINEAR_MIN_TERMS` such terms. ``row`` reads variable names (``sym``,
+    ``der``): ``index`` numbers the unknowns, ``subs`` the eliminated ones (``name ->
+    (coefficient, target, offset)``); a name eliminated with a parametric coefficient stays
+    in ``rest``."""
+    if row.op not in ("add", "sub"):
+        return None
+    terms: dict[int, list] = {}
+    rest = []
+    offset = 0.0
+    count = 0
+    stack = [(row, 1.0)]
+    while stack:
+        node, s = stack.pop()
+        op = node.op
+        if op == "add" or op == "sub":
+            a, b = node.args
+            stack.append((b, s if op == "add" else -s))
+            stack.append((a, s))
+            continue
+        if op == "neg":
+            stack.append((node.args[0], -s))
+            continue
+        if op == "mul" and (node.args[0].op == "const" or node.args[1].op == "const"):
+            a, b = node.args
+            k, other = (a.value, b) if a.op == "const" else (b.value, a)
+            stack.append((other, s * k))
+            continue
+        if op == "const":
+            offset += s * node.value
+            continue
+        if op == "sym" or op == "der":
+            nm = node.value
+            j = index.get(nm)
+            coef = 1.0
+            if j is None:
+                sub = subs.get(nm)
+                if sub is None or sub[0].__class__ is not float or \
+                        (op == "sym" and sub[2].__class__ is not float):
+                    rest.append((node, s))
+                    continue
+                coef, target, off = sub
+                if op == "sym":
+                    offset += s * off
+                if target is None:
+                    continue
+                j = index[target]
+            got = terms.get(j)
+            if got is None:
+                got = terms[j] = [0.0, 0.0]
+            got[0 if op == "sym" else 1] += s * coef
+            count += 1
+            continue
+        rest.append((node, s))
+    if count < LINEAR_MIN_TERMS:
+        return None
+    out = E.const(offset)
+    for node, s in rest:
+        out = out + (node if s == 1.0 else (-node if s == -1.0 else s * node))
+    return out, terms
+
+
+def _linear_source(linear, labels, names):
+    """Comment lines telling the rows whose long sums are sparse matrices."""
+    lines = ["# sums evaluated as sparse matrices (A y + B y'), added to the rows above:"]
+    for i, terms in linear.items():
+        shown = ", ".join(f"{a:+g} {names[j]}" for j, (a, _) in list(terms.items())[:3] if a)
+        lines.append(f"#   row {i} ({labels[i]}): {len(terms)} terms, {shown}, ...")
+    return "\n".join(lines)

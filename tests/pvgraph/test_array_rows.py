@@ -201,3 +201,62 @@ def test_rows_flavour_computes_the_scalar_flavour_element_by_element():
     bad = codegen.compile_function("g", *codegen.generate("g", [E.log(y0)], flavour="rows"))
     out = bad(0.0, [np.array([math.e, -1.0])], [], ())[0]
     assert out[0] == 1.0 and math.isnan(out[1])
+
+
+def manifold(m: int, q=lpm(40)) -> Circuit:
+    """A pump into one volume joining ``m`` turbulent orifices to the tank (two connection sets
+    of m + 2 and m + 1 ports)."""
+    c = Circuit(f"manifold{m}")
+    pump = c.add("pump", FlowSource(Q=q))
+    node = c.add("node", VolumeNode(V=litre(0.5)))
+    tank = c.add("tank", Tank())
+    ors = [c.add(f"o{k}", Orifice(A=mm2(1.0 + 0.05 * k))) for k in range(m)]
+    c.connect(pump.port, node.port, *[o.a for o in ors])
+    c.connect(tank.port, *[o.b for o in ors])
+    return c
+
+
+def test_a_node_of_many_ports_sums_its_flows_as_a_sparse_matrix():
+    """The flow balance of a node joining more than S.LINEAR_MIN_TERMS ports is a sparse
+    matrix product: the residual equals the straight-line sum to rounding, the Jacobian,
+    its pattern and dF/dp exactly, and a run conserves the pump's flow."""
+    q = lpm(40)
+    m = S.LINEAR_MIN_TERMS + 8
+    circuit = manifold(m, q)
+    plain = circuit.compile(array_rows=False)
+    arrays = circuit.compile(array_rows=True)
+    assert "sums evaluated as sparse matrices" in arrays.source()
+    assert "sums evaluated as sparse matrices" not in plain.source()
+    assert arrays.names == plain.names
+    np.testing.assert_array_equal(arrays._rows, plain._rows)
+    np.testing.assert_array_equal(arrays._cols, plain._cols)
+    np.testing.assert_array_equal(arrays.differential, plain.differential)
+    rng = np.random.default_rng(5)
+    for y, yp in _points(plain, rng):
+        # the sums add the same terms in another order: equal to a few ulps of the terms
+        scale = np.abs(y).max() + np.abs(yp).max()
+        np.testing.assert_allclose(arrays.residual(0.0, y, yp), plain.residual(0.0, y, yp),
+                                   rtol=0, atol=1e-14 * scale)
+        for c in (0.0, 1e3):
+            assert _close(arrays.jacobian_values(0.0, y, yp, c),
+                          plain.jacobian_values(0.0, y, yp, c))
+        assert _close(arrays.parameter_jacobian(0.0, y, yp), plain.parameter_jacobian(0.0, y, yp))
+    ra, rp = simulate(arrays, 0.3, rtol=1e-8), simulate(plain, 0.3, rtol=1e-8)
+    total = sum(ra[f"o{k}.q"][-1] for k in range(m))
+    assert abs(total - q) < 1e-7 * q          # continuity at the node, settled
+    np.testing.assert_allclose(ra["node.port.p"][-1], rp["node.port.p"][-1], rtol=1e-8)
+    # a parameter changed at run time reaches the summed rows' neighbours as in plain code
+    new = {"o3.A": mm2(7.0), "pump.Q": lpm(30)}
+    y, yp = plain.y0 + bar(2.0), np.zeros(plain.n)
+    np.testing.assert_allclose(arrays.with_params(new).residual(0.0, y, yp),
+                               plain.with_params(new).residual(0.0, y, yp), rtol=0,
+                               atol=1e-14 * np.abs(y).max())
+
+
+def test_sums_below_the_threshold_and_parametric_terms_stay_straight_line_code():
+    """A node of fewer ports, or one whose flows are parametric in the pressures (laminar
+    restrictions eliminated into the node), keeps its sum as generated code."""
+    few = manifold(S.LINEAR_MIN_TERMS - 4).compile(array_rows=True)
+    assert "sums evaluated as sparse matrices" not in few.source()
+    laminar = wide(20).compile(array_rows=True)    # 20 of the 42 flows are K (p_a - p_b)
+    assert "sums evaluated as sparse matrices" not in laminar.source()
