@@ -5,7 +5,9 @@ from __future__ import annotations
 import csv
 import math
 import os
+import sys
 import tempfile
+import types
 import warnings
 from typing import Iterable
 
@@ -514,3 +516,15 @@ def _check_pressures(sol: Solution) -> None:
             f"closed valve or a dead end with no leakage and no relief builds pressure without "
             f"bound; add a relief valve (CheckValve to tank), a leakage area or an outlet."),
             stacklevel=3)
+
+
+class _CallableModule(types.ModuleType):
+    """This module, callable as :func:`simulate`: ``import pvgraph; pvgraph.simulate(c, 1.0)``
+    and ``from pvgraph import simulate`` run a simulation as
+    ``from pvgraph.simulate import simulate`` does."""
+
+    def __call__(self, *args, **kwargs):
+        return simulate(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallableModule

@@ -409,3 +409,29 @@ def test_a_misspelled_option_is_named_with_the_closest_ones():
     sol = simulate(c, 1.0, params={"o.A": "3 mm^2"}, recompile=False)
     assert sol.final("n.port.p") == pytest.approx(870.0 / 2 * (10 / 60e3 / (0.6 * 3e-6)) ** 2,
                                                   rel=2e-3)
+
+
+def test_the_package_runs_simulate_and_the_analyses_by_their_names():
+    """``pvgraph.simulate(c, t)``, ``from pvgraph import simulate, steady_state``: the module
+    :mod:`pvgraph.simulate` is callable as its function, the analyses are package names. A
+    pump into an orifice settles at the orifice law's drop rho/2 (Q / (Cd A))^2."""
+    import pvgraph
+    from pvgraph import simulate as sim_module
+    from pvgraph import steady_state
+    c = Circuit("pump_orifice")
+    pump = c.add("pump", FlowSource(Q=lpm(10)))
+    node = c.add("node", VolumeNode(V=litre(0.1)))
+    ori = c.add("o", Orifice(A=mm2(5.0)))
+    tank = c.add("tank", Tank())
+    c.connect(pump.port, node.port, ori.a)
+    c.connect(ori.b, tank.port)
+    q, cd, a, rho = lpm(10), ori.params.Cd, mm2(5.0), ori.params.rho
+    want = rho / 2.0 * (q / (cd * a)) ** 2
+    assert abs(pvgraph.simulate(c, 0.5)["node.port.p"][-1] - want) < 1e-4 * want
+    assert abs(sim_module(c, 0.5)["node.port.p"][-1] - want) < 1e-4 * want
+    # the law's laminar rounding near zero flow moves the root by (dp_t / dp)^2 / 4 ~ 1e-6
+    assert abs(steady_state(c)["node.port.p"] - want) < 1e-5 * want
+    assert pvgraph.linearize is __import__("pvgraph.analysis").analysis.linearize
+    assert {"simulate", "steady_state", "sweep", "calibrate"} <= set(dir(pvgraph))
+    with pytest.raises(AttributeError, match="no attribute 'simulat'"):
+        pvgraph.simulat
