@@ -491,4 +491,12 @@ def load(path, *, modules: Iterable[str] = ()) -> Circuit:
             text = f.read()
     except OSError as exc:
         raise ModelFileError(f"cannot read model file {path}: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        with open(path, "rb") as f:
+            head = f.read(exc.start)
+        line = head.count(b"\n") + 1
+        column = exc.start - (head.rfind(b"\n") + 1) + 1
+        raise ModelFileError(
+            f"{path}, line {line}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at "
+            f"column {column}); save the model file as UTF-8") from None
     return loads(text, fmt, modules=modules, source=path)

@@ -202,6 +202,19 @@ def _seconds(value, what: str) -> float:
                            f"quantity such as '2 s')") from None
 
 
+def _tolerance(value, what: str) -> float:
+    """A relative tolerance (``rtol``, and ``atol`` in nominal units) as a float between 0 and
+    1, or a :class:`PvgraphError` naming it."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise PvgraphError(f"simulate: {what} = {value!r}: give a number between 0 and 1 "
+                           f"(e.g. {what}=1e-6), not a {type(value).__name__}")
+    value = float(value)
+    if not (0.0 < value < 1.0):
+        raise PvgraphError(f"simulate: {what} = {value!r}: a tolerance is a number between 0 "
+                           f"and 1 (relative to each variable's size), e.g. {what}=1e-6")
+    return value
+
+
 def _full_vector(system, values, what: str) -> np.ndarray:
     """``values`` as a float vector of the system's ``n`` unknowns, or an error naming it."""
     try:
@@ -272,6 +285,9 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         raise PvgraphError(f"t_end ({t_end!r}) must be finite and greater than t_start "
                            f"({t_start!r})")
     _check_options(options, solver)
+    rtol = _tolerance(rtol, "rtol")
+    if atol is not None:
+        atol = _tolerance(atol, "atol")
     recompile = options.pop("recompile", True)
     system = target.compile() if isinstance(target, Circuit) else target
     if params is not None:

@@ -540,9 +540,12 @@ class System:
         if name in self.observed:
             return self.observed[name][0]
         coef, idx, _ = self.resolve(name)
-        if idx is None:
-            return self._alias_units.get(name, "")
-        return self.units[idx]
+        # an alias keeps the unit its component declares: a rack position x = r phi is in m,
+        # not in the rad of the angle it is expressed in
+        own = self._alias_units.get(name)
+        if own is not None:
+            return own
+        return "" if idx is None else self.units[idx]
 
     def all_names(self) -> list[str]:
         """Every variable once, by its canonical name: the unknowns (in the order of ``y``),

@@ -642,3 +642,31 @@ def test_a_torque_on_a_node_that_nothing_holds_is_told_so():
     with pytest.raises(StructureError, match=r"sum of tau is zero contradicts .* A force or "
                                              r"torque acts on a node that nothing holds"):
         c.compile()
+
+
+@pytest.mark.parametrize("value, said", [("1e-6", "give a number"), (1.0, "between 0 and 1"),
+                                         (10, "between 0 and 1"), (0.0, "between 0 and 1"),
+                                         (True, "give a number")])
+def test_a_tolerance_that_is_no_relative_tolerance_is_refused_by_name(value, said):
+    """rtol and atol are fractions: a string, a bool, 0 or 1 and above are named (the command
+    line refuses the same values); a small one runs."""
+    c = demo()
+    with pytest.raises(PvgraphError, match=f"rtol = .*{said}"):
+        simulate(c, 0.1, rtol=value)
+    with pytest.raises(PvgraphError, match=f"atol = .*{said}"):
+        simulate(c, 0.1, atol=value)
+    assert simulate(c, 0.1, rtol=0.01).final("node.port.p") > 0.0
+
+
+def test_a_model_file_not_in_utf8_is_named_with_its_line(tmp_path):
+    """A model file saved in Latin-1 (a comment with an umlaut): a ModelFileError naming the
+    file, the line and the byte, not a decoding traceback."""
+    from pvgraph import modelfile
+    good = tmp_path / "demo.toml"
+    modelfile.save(demo(), good)
+    bad = tmp_path / "latin1.toml"
+    bad.write_bytes(b"# Drossel f\xfcr Zylinder\n" + good.read_bytes())
+    with pytest.raises(modelfile.ModelFileError,
+                       match=r"latin1.toml, line 1: not UTF-8 text \(byte 0xfc at column 12\)"):
+        modelfile.load(bad)
+    assert modelfile.load(good).compile().n == demo().compile().n

@@ -292,3 +292,32 @@ def test_a_mesh_damping_without_a_stiffness_is_refused(make):
                                              r"None"):
         make(1.0)
     make(0.0)
+
+
+def test_a_rack_position_expressed_in_the_pinion_angle_keeps_its_own_unit():
+    """Rack and pinion (r = 0.05 m) join a 1 kg mass and a 0.1 kg m^2 inertia; 10 N pushes.
+    x(t) = x0 + F t^2 / (2 (m + J / r^2)); the rack position is a length and the pinion
+    torque a torque whichever of them the compiler keeps as the unknown, in results, CSV
+    headers and start values with units."""
+    from pvgraph.components import Constant, ForceInput, Inertia, Mass, RackPinion
+    from pvgraph.simulate import simulate
+    c = Circuit("rack")
+    m = c.add("M", Mass(m=1.0, x0=0.02))
+    inertia = c.add("I", Inertia(J=0.1))
+    rack = c.add("R", RackPinion(r=0.05))
+    force = c.add("k", Constant(k=10.0))
+    push = c.add("f", ForceInput())
+    c.connect(m.flange, rack.flange, push.flange)
+    c.connect(rack.shaft, inertia.shaft)
+    c.connect(force.y, push.u)
+    sol = simulate(c, 0.1, rtol=1e-8)
+    want = 0.02 + 10.0 * 0.1 ** 2 / (2.0 * (1.0 + 0.1 / 0.05 ** 2))
+    assert abs(sol.final("M.flange.x") - want) < 1e-9
+    assert sol.unit("M.flange.x") == sol.unit("R.flange.x") == "m"
+    assert sol.unit("I.shaft.phi") == "rad"
+    assert sol.unit("I.shaft.tau") == sol.unit("R.shaft.tau") == "N m"
+    assert sol.unit("M.flange.f") == "N"
+    # a start value in a length unit on the rack position is taken (was refused as rad)
+    moved = simulate(c, 0.1, rtol=1e-8, start={"M.flange.x": "30 mm"})
+    assert abs(moved["M.flange.x"][0] - 0.03) < 1e-12
+    assert abs(moved["I.shaft.phi"][0] - 0.03 / 0.05) < 1e-12
