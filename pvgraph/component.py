@@ -31,6 +31,7 @@ import math
 import re
 import types
 from dataclasses import dataclass
+import typing
 from typing import Any, Callable, ClassVar
 
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
@@ -140,6 +141,12 @@ class Params(BaseModel):
         name = info.field_name
         takes_float, unit = _field_unit(cls, name)
         if not takes_float:
+            if isinstance(value, bool) and not _takes_bool(cls.model_fields[name].annotation):
+                # pydantic's lax mode would read True as 1 (Literal[1, 2], int)
+                choices = typing.get_args(cls.model_fields[name].annotation)
+                takes = " or ".join(map(repr, choices)) if all(
+                    isinstance(c, (int, str)) for c in choices) and choices else "a number"
+                raise ValueError(f"{value!r} is a bool; {name} takes {takes}")
             return value
         if isinstance(value, (list, tuple)):
             if all(type(v) is float and (v == 0.0 or _PARAM_TINY <= abs(v) <= _PARAM_HUGE)
@@ -177,6 +184,14 @@ def _takes_float(annotation) -> bool:
     return any(_takes_float(a) for a in getattr(annotation, "__args__", ()) if a is not Ellipsis)
 
 
+def _takes_bool(annotation) -> bool:
+    """True when a field's annotation admits a bool (bool, bool | None, Any)."""
+    if annotation is bool or annotation is Any:
+        return True
+    return any(_takes_bool(a) for a in getattr(annotation, "__args__", ()) if isinstance(a, type)
+               or getattr(a, "__args__", None))
+
+
 def _param_number(value, unit, name):
     if isinstance(value, bool):
         raise ValueError(f"{value!r} is a bool, not a number{f' [{unit}]' if unit else ''}")
@@ -200,6 +215,31 @@ def _is_plain_number(text: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+def check_table(x, y, xname: str, yname: str, *, y_range=None) -> None:
+    """Check a lookup table's points for a parameter validator: ``x`` and ``y`` of one length
+    of at least 2, ``x`` strictly increasing, every value finite (and ``y`` within ``y_range``,
+    a ``(low, high)`` pair, if given). Raises ``ValueError`` naming the field, which pydantic
+    reports with the component (``invalid parameters for Pump: ...``)."""
+    if len(x) != len(y) or len(x) < 2:
+        raise ValueError(f"{xname} ({len(x)} points) and {yname} ({len(y)} points) must have "
+                         f"the same length >= 2")
+    for name, values in ((xname, x), (yname, y)):
+        bad = [v for v in values if not math.isfinite(v)]
+        if bad:
+            raise ValueError(f"{name} holds {bad[0]!r}: every point must be a finite number")
+    steps = [b - a for a, b in zip(x, x[1:])]
+    if min(steps) <= 0.0:
+        k = steps.index(min(steps))
+        raise ValueError(f"{xname} must be strictly increasing: {x[k]!r} is followed by "
+                         f"{x[k + 1]!r} (point {k + 2})")
+    if y_range is not None:
+        low, high = y_range
+        out = [v for v in y if not low <= v <= high]
+        if out:
+            raise ValueError(f"{yname} holds {out[0]!r}: its values must lie in "
+                             f"[{low:g}, {high:g}]")
 
 
 class NoParams(Params):

@@ -670,3 +670,42 @@ def test_a_model_file_not_in_utf8_is_named_with_its_line(tmp_path):
                        match=r"latin1.toml, line 1: not UTF-8 text \(byte 0xfc at column 12\)"):
         modelfile.load(bad)
     assert modelfile.load(good).compile().n == demo().compile().n
+
+
+@pytest.mark.parametrize("make, said", [
+    (lambda: Pump(Q0=1e-4, t_table=(0.0, 2.0, 1.0), Q_table=(0.0, 1e-4, 2e-4)),
+     r"(?s)Pump:.*t_table must be strictly increasing: 2.0 is followed by 1.0 \(point 3\)"),
+    (lambda: Pump(Q0=1e-4, t_table=(0.0,), Q_table=(1e-4,)),
+     r"(?s)Pump:.*t_table \(1 points\) and Q_table \(1 points\) must have the same length >= 2"),
+    (lambda: Pump(Q0=1e-4, t_table=(0.0, 1.0), Q_table=(-5.0, 50.0)),
+     r"(?s)Pump:.*Q_table holds -5.0: its values must lie in \[0, 1\]"),
+])
+def test_a_bad_pump_table_is_refused_when_built_naming_the_field(make, said):
+    with pytest.raises(ParameterError, match=said):
+        make()
+
+
+def test_a_bad_spool_edge_table_or_one_without_its_switch_is_refused():
+    from pvgraph.components import DirectionalValve43
+    with pytest.raises(ParameterError, match=r"(?s)DirectionalValve43:.*s_table must be strictly "
+                                             r"increasing: 0.5 is followed by 0.2"):
+        DirectionalValve43(A_max=1e-5, edge="table", s_table=(0.0, 0.5, 0.2),
+                           A_table=(0.0, 0.1, 0.2))
+    with pytest.raises(ParameterError, match=r"used with edge='table' only \(edge is 'linear'\)"):
+        DirectionalValve43(A_max=1e-5, s_table=(0.0, 1.0), A_table=(0.0, 1.0))
+    ok = DirectionalValve43(A_max=1e-5, edge="table", s_table=(0.0, 1.0), A_table=(0.0, 1.0))
+    assert ok.params.s_table == (0.0, 1.0)
+
+
+def test_a_bool_for_a_choice_of_numbers_or_a_section_count_is_refused():
+    """pydantic would read True as 1 for ``Literal[1, 2]``; a numpy integer is a count."""
+    from pvgraph.components import PistonChamber, ServoValve
+    from pvgraph.components.hydraulic.lines import segmented_line
+    with pytest.raises(ParameterError, match="order = True: True is a bool; order takes 1 or 2"):
+        ServoValve(Q_nom=1e-4, order=True)
+    with pytest.raises(ParameterError, match="side takes 1 or -1"):
+        PistonChamber(A=1e-3, V0=1e-5, side=True)
+    with pytest.raises(ParameterError, match="n = True: give the number of sections"):
+        segmented_line(True, d=0.01, l=2.0)
+    line = segmented_line(np.int64(4), d=0.01, l=2.0)
+    assert len([k for k in line._components if k.startswith("s")]) == 4

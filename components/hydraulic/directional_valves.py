@@ -62,7 +62,8 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from pvgraph import expr as E
-from pvgraph.component import Component, Hydraulic, Params, SignalIn, Variable, der
+from pvgraph.component import (Component, Hydraulic, Params, SignalIn, Variable, check_table,
+                               der)
 from pvgraph.laws import orifice_flow, smooth_abs, smooth_pos
 
 from ..mechanical.laws import onset_penetration
@@ -102,10 +103,11 @@ class SpoolEdgeParams(EdgeFlowParams):
         if self.edge == "table":
             if self.s_table is None or self.A_table is None:
                 raise ValueError("edge='table' needs s_table and A_table")
-            if len(self.s_table) != len(self.A_table) or len(self.s_table) < 2:
-                raise ValueError("s_table and A_table must have the same length >= 2")
-            if min(self.A_table) < 0.0 or max(self.A_table) > 1.0:
-                raise ValueError("A_table holds fractions of A_max in [0, 1]")
+            check_table(self.s_table, self.A_table, "s_table", "A_table (fractions of A_max)",
+                        y_range=(0.0, 1.0))
+        elif self.s_table is not None or self.A_table is not None:
+            raise ValueError(f"s_table and A_table are used with edge='table' only (edge is "
+                             f"{self.edge!r}): give edge='table' as well, or leave them out")
         return self
 
 

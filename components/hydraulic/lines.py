@@ -30,6 +30,8 @@ the wave reaching b after ``l / c``).
 
 from __future__ import annotations
 
+import operator
+
 import math
 from typing import Literal
 
@@ -121,9 +123,15 @@ class PiLine(Component):
 
 def segmented_line(n: int, name: str = "line", **params) -> Circuit:
     """A line of ``n`` equal pi-sections (``l`` is the total length); ports ``a`` and ``b``."""
-    if not isinstance(n, int) or n < 1:
+    try:
+        count = operator.index(n)     # an int or a numpy integer; not a float, not a bool
+    except TypeError:
+        count = 0
+    if isinstance(n, bool) or count < 1:
         from pvgraph.errors import ParameterError
-        raise ParameterError(f"segmented_line: n must be a positive integer, got {n!r}")
+        raise ParameterError(f"segmented_line: n = {n!r}: give the number of sections, a "
+                             f"positive integer")
+    n = count
     if "l" not in params:
         from pvgraph.errors import ParameterError
         raise ParameterError("segmented_line: give the total length l [m]")

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from pydantic import Field, model_validator
 
-from pvgraph.component import Component, Hydraulic, Params, SignalIn
+from pvgraph.component import Component, Hydraulic, Params, SignalIn, check_table
 from pvgraph import expr as E
 
 
@@ -84,9 +84,8 @@ class PumpParams(Params):
     def _table_shape(self):
         if (self.t_table is None) != (self.Q_table is None):
             raise ValueError("t_table and Q_table must be given together")
-        if self.t_table is not None and len(self.t_table) != len(self.Q_table):
-            raise ValueError(f"t_table has {len(self.t_table)} points but Q_table has "
-                             f"{len(self.Q_table)}")
+        if self.t_table is not None:
+            check_table(self.t_table, self.Q_table, "t_table", "Q_table", y_range=(0.0, 1.0))
         return self
 
 
