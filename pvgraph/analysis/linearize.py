@@ -637,7 +637,19 @@ def linearize_circuit(build: Callable[[dict], object], u0: Mapping[str, float],
         raise PvgraphError("outputs: name at least one variable")
     if not (isinstance(eps_rel, (int, float)) and eps_rel > 0.0 and math.isfinite(eps_rel)):
         raise PvgraphError(f"eps_rel must be a positive number, got {eps_rel!r}")
+    given = dict(u0)
     u0 = {name: _si_number(value, f"u0[{name!r}]") for name, value in u0.items()}
+    quantities = {name: v for name, v in given.items() if not isinstance(v, (int, float, bool))
+                  and not isinstance(v, (np.integer, np.floating))}
+    if quantities:
+        # the components check a quantity's dimension against their field's: a circuit built
+        # from the values as given refuses '2 mm' for an area (the SI number would not)
+        try:
+            build(given)
+        except PvgraphError:
+            raise
+        except Exception:   # noqa: BLE001  (build computes with the values: numbers only)
+            pass
     for name, step in dict(du or {}).items():
         if name not in u0:
             raise PvgraphError(f"du names {name!r}, which is not an input; the inputs are "
@@ -648,6 +660,11 @@ def linearize_circuit(build: Callable[[dict], object], u0: Mapping[str, float],
     if built is None:
         raise PvgraphError("build(u0) returned None; it must return a Circuit or a System")
     system = _as_system(built)
+    for name, value in quantities.items():   # an input that is a parameter: its unit
+        info = system.parameters.get(name)
+        if info is not None and getattr(info, "unit", None) is not None:
+            from ..units import number_in
+            number_in(value, info.unit, f"u0[{name!r}]")
     _check_linear_outputs(system, outputs)
     if op is None:
         op = steady_state(system, y0=y0, tol=tol)

@@ -151,7 +151,7 @@ def test_line_jacobian_and_hose_softer_than_pipe():
     hose = PiLine(**LINE, beta_wall=3e8).params
     assert hose.wave_speed == pytest.approx(math.sqrt(1 / (1 / BETA + 1 / 3e8) / RHO))
     assert hose.wave_speed < PiLine(**LINE).params.wave_speed
-    with pytest.raises(ParameterError, match="n must be"):
+    with pytest.raises(ParameterError, match="n = 0: give the number of sections, a positive integer"):
         segmented_line(0, l=1.0, d=0.01)
 
 

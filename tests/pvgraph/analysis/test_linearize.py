@@ -540,3 +540,33 @@ def test_linearize_circuit_takes_quantities_and_refuses_derived_outputs_up_front
     with pytest.raises(PvgraphError, match=r"'orifice.q' is a derived output .* "
                                            r"op.sensitivity"):
         linearize_circuit(build, {"pump.Q": 1e-4}, ["orifice.q"])
+
+
+def test_an_input_given_as_a_quantity_is_checked_against_its_parameter():
+    """u0 = {"orifice.A": "2 mm^2"} is the area 2e-6 m^2: the pole -(beta/V) Q / (2 dp) with
+    dp = rho/2 (Q / (Cd A))^2; "2 mm" (a length) is refused as the component refuses it,
+    not taken as 0.002 m^2."""
+    from pvgraph import Circuit, ParameterError
+    from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
+
+    def build(u):
+        c = Circuit("demo")
+        pump = c.add("pump", FlowSource(Q="10 L/min"))
+        node = c.add("node", VolumeNode(V="0.5 L"))
+        ori = c.add("orifice", Orifice(A=u["orifice.A"]))
+        tank = c.add("tank", Tank())
+        c.connect(pump.port, node.port, ori.a)
+        c.connect(ori.b, tank.port)
+        return c
+    lm = linearize_circuit(build, {"orifice.A": "2 mm^2"}, ["node.port.p"])
+    node = build({"orifice.A": 2e-6})._components["node"].params
+    ori = build({"orifice.A": 2e-6})._components["orifice"].params
+    q = 10.0 / 60000.0
+    dp = ori.rho / 2.0 * (q / (ori.Cd * 2e-6)) ** 2
+    pole = np.real(lm.poles())
+    want = -(node.beta / node.V) * q / (2.0 * dp)     # -13.90 1/s
+    assert len(pole) == 1 and abs(pole[0] - want) < 1e-3 * abs(want)
+    with pytest.raises(ParameterError, match="A = '2 mm' is a length, but A is an area"):
+        linearize_circuit(build, {"orifice.A": "2 mm"}, ["node.port.p"])
+    with pytest.raises(ParameterError, match="A = '2 bar' is a pressure, but A is an area"):
+        linearize_circuit(build, {"orifice.A": "2 bar"}, ["node.port.p"])
