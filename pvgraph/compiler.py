@@ -150,6 +150,8 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     var_specs: dict = {}   # component class -> its variables (see _declare_variables)
     given: dict = {}       # start values the user gave, by full name
     of_template: dict = {}   # template -> [(path, component) built from it]
+    balance: dict = {}       # component class -> the equations it owes (_local_balance)
+    unbalanced: list = []    # components returning another number of equations
     # the parameter trace is active over the whole loop (the start values read numbers only);
     # the math functions of the vocabulary stay symbolic throughout
     with trace:
@@ -158,6 +160,11 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
             trace.where = f"{type(comp).__name__}.equations of {path!r}"
             residuals, v, leaves_read = templates.trace(comp, path, registry, trace)
             found.extend(leaves_read)
+            want = balance.get(type(comp))
+            if want is None:
+                want = balance[type(comp)] = _local_balance(type(comp))
+            if len(residuals) != want[0]:
+                unbalanced.append((path, type(comp).__name__, len(residuals), want))
             if templates.last is not None:
                 tpl, at = templates.last
                 built = of_template.get(tpl)
@@ -212,8 +219,13 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     incidence = None
     if eliminate_aliases:
         incidence = []
-        equations = _eliminate_aliases(equations, infos, subs, trace.values, found, incidence,
-                                       prov, why)
+        try:
+            equations = _eliminate_aliases(equations, infos, subs, trace.values, found,
+                                           incidence, prov, why)
+        except StructureError as exc:
+            if unbalanced:
+                raise StructureError(f"{exc}\n{_unbalanced_text(unbalanced)}") from None
+            raise
     del found
 
     from .index_reduction import reduce_index
@@ -221,13 +233,15 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     try:
         equations, events, observed, reduction = reduce_index(equations, infos, subs, events,
                                                               observed, given,
-                                                              incidence)
+                                                              incidence, params=values)
         del incidence
         system = build_system(circuit.name, equations, infos, subs, observed, events,
                               mode_names, mode_start, parameters=registry,
                               tables=trace.tables, array_rows=array_rows, provenance=prov)
     except StructureError as exc:
         told = _fixed_elsewhere(exc, equations, infos, subs, why)
+        if unbalanced:
+            told = (told + "\n" if told else "") + _unbalanced_text(unbalanced)
         if told:
             raise StructureError(f"{exc}\n{told}") from None
         raise
@@ -236,6 +250,37 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     system._components = dict(leaves)
     system._models = {path: comp.params for path, comp in leaves}
     return reduction.attach(system)
+
+
+def _local_balance(cls) -> tuple[int, str]:
+    """The number of equations a component of class ``cls`` gives in a balanced model, and
+    what they are for: one per own variable, one per port's through variable (flow, force,
+    torque), one per signal output (Modelica's local balance)."""
+    own = list(cls.variables)
+    flows = [f"{pn}.{pt.domain.through}" for pn, pt in cls.ports.items()
+             if pt.domain is not SIGNAL and pt.domain.through]
+    outs = [pn for pn, pt in cls.ports.items()
+            if pt.domain is SIGNAL and pt.causality == "output"]
+    parts = []
+    for what, names in (("own variable", own), ("port through variable", flows),
+                        ("signal output", outs)):
+        if names:
+            parts.append(f"{len(names)} {what}{'s' if len(names) > 1 else ''} "
+                         f"({', '.join(names)})")
+    return len(own) + len(flows) + len(outs), ", ".join(parts) or "nothing"
+
+
+def _unbalanced_text(unbalanced) -> str:
+    """The components whose equations do not match their own unknowns, for a structural
+    error's message."""
+    lines = ["Components giving another number of equations than they own unknowns (one per "
+             "own variable, port flow or force, and signal output):"]
+    for path, cls_name, got, (want, what) in unbalanced[:6]:
+        lines.append(f"  {path!r} ({cls_name}): {got} equation{'s' if got != 1 else ''} for "
+                     f"{what}: {abs(want - got)} {'missing' if got < want else 'too many'}")
+    if len(unbalanced) > 6:
+        lines.append(f"  ... and {len(unbalanced) - 6} more")
+    return "\n".join(lines)
 
 
 def _traced_roles(comp, path):

@@ -25,6 +25,7 @@ what makes a parameter structural).
 
 from __future__ import annotations
 
+import difflib
 import functools
 import inspect
 import math
@@ -317,9 +318,18 @@ class _PortSymbols:
 
     def __init__(self, prefix: str, port: Port):
         d = port.domain
+        self._prefix, self._domain = prefix, d
         setattr(self, d.across, E.Expr("sym", (), f"{prefix}.{d.across}"))
         if d.through:
             setattr(self, d.through, E.Expr("sym", (), f"{prefix}.{d.through}"))
+
+    def __getattr__(self, name):
+        if name.startswith("_"):
+            raise AttributeError(name)
+        d = self._domain
+        has = " and ".join(repr(v) for v in (d.across, d.through) if v)
+        raise AttributeError(f"port {self._prefix!r} is {d.name}: its variables are {has}, "
+                             f"not {name!r}")
 
 
 class Symbols:
@@ -458,6 +468,13 @@ class _ModelView:
             return attr.func(self)
         if isinstance(attr, types.FunctionType):
             return types.MethodType(attr, self)
+        if attr is None and not hasattr(model, name):
+            close = difflib.get_close_matches(name, list(_fields(cls)), n=3)
+            hint = f"; close: {', '.join(close)}" if close else ""
+            raise AttributeError(
+                f"{self._owner}: its parameters ({cls.__name__}) have no field {name!r}"
+                f"{hint}. Declare it in the Params class, e.g. "
+                f"{name}: float = Field(..., description='... [unit]')")
         return getattr(model, name)
 
     def __setattr__(self, name, value):

@@ -366,7 +366,8 @@ def _times(k):
 
 # entry point --------------------------------------------------------------------------------------
 
-def reduce_index(equations, infos, subs, events, observed, given=None, incidence=None):
+def reduce_index(equations, infos, subs, events, observed, given=None, incidence=None,
+                 params=None):
     """Reduce the index of the compiled equations if needed.
 
     Parameters
@@ -385,6 +386,9 @@ def reduce_index(equations, infos, subs, events, observed, given=None, incidence
     incidence : list, optional
         ``(values read, derivatives read)`` (sets of names) of each equation, if known (the
         compiler's, from alias elimination); otherwise read from the expressions.
+    params : dict, optional
+        The runtime parameters' values by name, for the numbers of the constraint Jacobians
+        at the start (a constraint ``(x/L)^2 + (y/L)^2 = 1`` reads ``L``).
 
     Returns
     -------
@@ -421,7 +425,8 @@ def reduce_index(equations, infos, subs, events, observed, given=None, incidence
         return equations, events, observed, IndexReduction()
     if not _perfect([a | b for a, b in zip(inc_y, inc_yp)], n):
         return equations, events, observed, IndexReduction()  # singular: refused downstream
-    return _Reducer(equations, infos, unknowns, events, observed, given or {}).run()
+    return _Reducer(equations, infos, unknowns, events, observed, given or {},
+                    params or {}).run()
 
 
 def _perfect(cols, n):
@@ -435,8 +440,9 @@ def _perfect(cols, n):
 class _Reducer:
     """Pantelides' algorithm and the dummy-derivative selection on one system."""
 
-    def __init__(self, equations, infos, unknowns, events, observed, given):
+    def __init__(self, equations, infos, unknowns, events, observed, given, params=None):
         self.orig = equations
+        self.params = params or {}
         self.infos = infos
         self.unknowns = unknowns
         self.events = events
@@ -599,7 +605,8 @@ class _Reducer:
         """Columns (indices into cand) of a well-conditioned square block, one per equation."""
         m = len(eqs)
         try:
-            H = np.array([[_evaluate(d, values) for d in row] for row in jac], dtype=float)
+            H = np.array([[_evaluate(d, values, self.params) for d in row] for row in jac],
+                         dtype=float)
         except (_NotEvaluable, ValueError, ZeroDivisionError, OverflowError):
             H = None
         if H is not None and np.all(np.isfinite(H)):
@@ -619,7 +626,10 @@ class _Reducer:
                 + ", ".join(derivative_name(*self.var_key[v]) for v in cand)
                 + " at the start values: the equations repeat or contradict each other (two "
                   "components fixing the same quantity), or the start point is a singular "
-                  "configuration. Remove the redundant constraint or change the start values.")
+                  "configuration. Remove the redundant constraint or change the start values. "
+                  "Two rigid paths between the same bodies (gears or racks in parallel, a ring "
+                  "of gears) leave the force shared between them undetermined: give one of "
+                  "them a mesh stiffness (k).")
         # not evaluable at the start: a structural choice
         cols = [[j for j, d in enumerate(row) if not E.is_const(d, 0.0)] for row in jac]
         order = sorted(range(len(cand)), key=lambda j: (-self.var_key[cand[j]][1],
@@ -740,7 +750,7 @@ class _Reducer:
                 if len(chosen) <= MONITOR_MAX_BLOCK:
                     det = _det(block)
                     try:
-                        det0 = _evaluate(det, values)
+                        det0 = _evaluate(det, values, self.params)
                     except (_NotEvaluable, ValueError, ZeroDivisionError, OverflowError):
                         det0 = math.nan
                     if math.isfinite(det0) and det0 != 0.0:
@@ -869,8 +879,9 @@ _FUNCS = {"sqrt": math.sqrt, "exp": math.exp, "log": math.log, "tanh": math.tanh
           "sin": math.sin, "cos": math.cos, "atan": math.atan, "abs": abs}
 
 
-def _evaluate(e: E.Expr, values: dict) -> float:
-    """Value of ``e`` at ``t = 0`` with named leaves from ``values`` (modes and others 0)."""
+def _evaluate(e: E.Expr, values: dict, params=None) -> float:
+    """Value of ``e`` at ``t = 0`` with named leaves from ``values`` (modes and others 0) and
+    runtime parameters from ``params`` (by name)."""
     val: dict[int, float] = {}
     for node in E.postorder([e]):
         op = node.op
@@ -881,6 +892,9 @@ def _evaluate(e: E.Expr, values: dict) -> float:
             r = values.get(node.value, 0.0)
         elif op == "time":
             r = 0.0
+        elif op == "param" and params and isinstance(node.value, str) and \
+                isinstance(params.get(node.value), (int, float)):
+            r = params[node.value]
         elif op == "add":
             r = a[0] + a[1]
         elif op == "sub":

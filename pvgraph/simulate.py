@@ -137,9 +137,9 @@ class Solution:
                 f"{self.t[-1]:g} s, {len(self.events)} events>")
 
 
-#: [Pa] above this a gauge pressure is taken as a modelling error (10 000 bar; hydraulic
-#: components are rated to a few hundred bar)
-PRESSURE_LIMIT = 1e9
+#: [Pa] above this a gauge pressure is taken as a modelling error (1000 bar: hydraulic
+#: components are rated to a few hundred bar, and the library's pressure parameters end here)
+PRESSURE_LIMIT = 1e8
 
 
 def _write_csv(f, header, t, cols):

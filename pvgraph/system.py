@@ -662,8 +662,12 @@ class System:
                     raise ParameterError(f"{self.name}: {exc}") from None
         new._alias_values = None
         new._update_derived()
-        if started and getattr(new, "index_reduction", None) is not None:
-            new.index_reduction.restart(new, started)   # as a fresh compilation would
+        reduction = getattr(new, "index_reduction", None)
+        if reduction is not None and (started or reduction.given):
+            # as a fresh compilation would: the given starts hold under the new values (a rack
+            # position given stays where it is when the pinion's radius changes, the pinion
+            # angle moves)
+            reduction.restart(new, started)
         return new
 
     def _update_derived(self):

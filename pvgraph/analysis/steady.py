@@ -66,6 +66,17 @@ class OperatingPoint:
         coef, idx, off = self.system.resolve(name)
         return float(off if idx is None else coef * self.y[idx] + off)
 
+    def poles(self) -> np.ndarray:
+        """The poles of the circuit linearised here [1/s] (eigenvalues of the state matrix of
+        :func:`~pvgraph.analysis.linearize`): all with negative real parts where the steady
+        state is stable."""
+        from .linearize import linearize
+        got = self.info.get("poles")
+        if got is None:
+            got = linearize(self.system, self, None, [self.system.names[0]]).poles()
+            self.info["poles"] = got
+        return np.asarray(got)
+
     def state_sensitivity(self, params=None) -> np.ndarray:
         """dy/dp at this steady state, ``(n, len(params))``: the solution of F_y S = -F_p.
 
@@ -615,7 +626,53 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
     if free:
         info["undetermined"] = free
     _check_pressures(system, y1)
-    return OperatingPoint(y1, yp1, system, t, fn, total, method, info)
+    op = OperatingPoint(y1, yp1, system, t, fn, total, method, info)
+    _check_stability(op)
+    return op
+
+
+#: steady states of systems up to this many unknowns are checked for stability (a dense
+#: linearisation: about 1 ms at 100 unknowns, 50 ms at 500)
+STABILITY_MAX_N = 500
+
+
+def _check_stability(op) -> None:
+    """Warn where the steady state is unstable: a pole of the linearisation with a positive
+    real part (a simulation from it oscillates or runs away instead of staying). The poles
+    are kept in ``op.info["poles"]``."""
+    import warnings
+
+    from ..errors import PlausibilityWarning
+    system = op.system
+    if not 0 < system.n <= STABILITY_MAX_N or not system.differential.any():
+        return
+    try:
+        poles = op.poles()
+    except (PvgraphError, np.linalg.LinAlgError, ValueError):
+        return
+    op.info["poles"] = poles
+    if not len(poles):
+        return
+    # a zero pole (a free position, a drifting angle) is neutral, not unstable: the bar is
+    # above the rounding of a double zero pole, sqrt(eps |A|) (a free mass: x' = v, v' = 0)
+    bar = max(1e-3, 10.0 * math.sqrt(np.finfo(float).eps * float(np.abs(poles).max())))
+    bad = poles[poles.real > bar]
+    if not len(bad):
+        return
+    worst = bad[np.argmax(bad.real)]
+    if abs(worst.imag) > bar:
+        how = (f"{worst.real:.3g} +- {abs(worst.imag):.3g}j 1/s: an oscillation at "
+               f"{abs(worst.imag) / (2.0 * math.pi):.3g} Hz that grows")
+    else:
+        how = f"{worst.real:.3g} 1/s: a departure that grows with time constant " \
+              f"{1.0 / worst.real:.3g} s"
+    warnings.warn(PlausibilityWarning(
+        f"{system.name}: the steady state found is unstable (pole {how}; {len(bad)} unstable "
+        f"pole{'s' if len(bad) > 1 else ''} of {len(poles)}, op.poles()). The equations balance "
+        f"there, but the circuit does not stay: a simulation from it oscillates or runs away. "
+        f"Compliance or damping where the loop is stiff (a volume on a valve's port, a "
+        f"damper on a spool) steadies it; simulate to see what it does instead."),
+        stacklevel=3)
 
 
 def _undetermined(system, t, y, yp, cyclic) -> list[str]:

@@ -39,7 +39,7 @@ def test_pump_draws_from_a_and_delivers_to_b():
 @pytest.mark.parametrize("kwargs, field", [
     (dict(Q0=-1e-3), "Q0"),
     (dict(Q0=1e-3, t_table=(0.0, 1.0)), "t_table and Q_table"),
-    (dict(Q0=1e-3, t_table=(0.0, 1.0), Q_table=(0.0,)), "t_table has 2 points"),
+    (dict(Q0=1e-3, t_table=(0.0, 1.0), Q_table=(0.0,)), r"t_table \(2 points\) and Q_table \(1 points\)"),
 ])
 def test_pump_rejects_bad_parameters(kwargs, field):
     with pytest.raises(ParameterError, match=field):

@@ -321,3 +321,50 @@ def test_a_rack_position_expressed_in_the_pinion_angle_keeps_its_own_unit():
     moved = simulate(c, 0.1, rtol=1e-8, start={"M.flange.x": "30 mm"})
     assert abs(moved["M.flange.x"][0] - 0.03) < 1e-12
     assert abs(moved["I.shaft.phi"][0] - 0.03 / 0.05) < 1e-12
+
+
+@pytest.mark.parametrize("r", [0.1, 0.02])
+def test_a_given_rack_position_holds_when_the_radius_changes_at_run_time(r):
+    """Mass(x0 = 0.02 m) on a rack, pinion radius changed as a runtime parameter: the rack
+    starts at its given 0.02 m (the pinion angle moves to x0 / r), and x(1) = x0 + F / (2 (m
+    + J / r^2)), as the circuit compiled with that radius gives."""
+    from pvgraph.components import Constant, ForceInput, Inertia, Mass, RackPinion
+
+    def build(radius=0.05):
+        c = Circuit("rack")
+        m = c.add("M", Mass(m=1.0, x0=0.02))
+        inertia = c.add("I", Inertia(J=0.1))
+        rack = c.add("R", RackPinion(r=radius))
+        force = c.add("k", Constant(k=10.0))
+        push = c.add("f", ForceInput())
+        c.connect(m.flange, rack.flange, push.flange)
+        c.connect(rack.shaft, inertia.shaft)
+        c.connect(force.y, push.u)
+        return c
+    sol = simulate(build().compile(), 1.0, rtol=1e-9, params={"R.r": r})
+    assert abs(sol["M.flange.x"][0] - 0.02) < 1e-12
+    assert abs(sol["I.shaft.phi"][0] - 0.02 / r) < 1e-10
+    assert abs(sol.final("M.flange.x") - (0.02 + 10.0 / (2.0 * (1.0 + 0.1 / r ** 2)))) < 1e-8
+
+
+def test_two_rigid_gears_in_parallel_are_refused_naming_the_way_out():
+    """Two gears i = 4 between the same shafts: the torque each carries is undetermined, a
+    StructureError when compiling names the redundant constraint and the mesh stiffness; with
+    one mesh compliant the pair runs at dw/dt = T / (J_a + J_b / i^2)."""
+    from pvgraph.components import Gear, Inertia, TorqueSource
+    from pvgraph.errors import StructureError
+
+    def pair(**second):
+        c = Circuit("gears")
+        a = c.add("I", Inertia(J=0.1))
+        b = c.add("J2", Inertia(J=2.0))
+        torque = c.add("T", TorqueSource(T=1.0))
+        g1 = c.add("G1", Gear(i=4.0))
+        g2 = c.add("G2", Gear(i=4.0, **second))
+        c.connect(a.shaft, g1.a, g2.a, torque.shaft)
+        c.connect(g1.b, g2.b, b.shaft)
+        return c
+    with pytest.raises(StructureError, match=r"redundant constraint.*mesh stiffness \(k\)"):
+        pair().compile()
+    sol = simulate(pair(k=1e6, d=1e2), 1.0, rtol=1e-8)
+    assert abs(sol.final("I.w") - 1.0 / (0.1 + 2.0 / 16.0)) < 1e-3 * 4.444

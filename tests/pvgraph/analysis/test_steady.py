@@ -167,3 +167,29 @@ def test_a_row_scaled_at_a_closed_valve_is_scaled_again_where_newton_stops(back)
     c.connect(ck.b, end.port)
     op = steady_state(c.compile())
     assert op["ck.a.p"] - back == pytest.approx(870.0 / 2 * (Q / (0.6 * A)) ** 2, rel=1e-4)
+
+
+@pytest.mark.parametrize("g", [2.0, -2.0])
+def test_an_unstable_steady_state_is_told_with_its_pole(g):
+    """y' = k g y (an integrator, k = 1.5, fed back through a gain g): the steady state y = 0
+    has the pole k g; at +3 1/s a simulation runs away from it, and steady_state says so."""
+    import warnings as w
+
+    from pvgraph.components.signal import Gain, Integrator
+    from pvgraph.errors import PlausibilityWarning
+    c = Circuit("loop")
+    integ = c.add("i", Integrator(k=1.5))
+    gain = c.add("g", Gain(k=g))
+    c.connect(integ.y, gain.u)
+    c.connect(gain.y, integ.u)
+    with w.catch_warnings(record=True) as seen:
+        w.simplefilter("always")
+        op = steady_state(c.compile())
+    told = [str(x.message) for x in seen if issubclass(x.category, PlausibilityWarning)]
+    assert abs(op["i.y"]) < 1e-12
+    np.testing.assert_allclose(op.poles(), [1.5 * g], rtol=1e-12)
+    if g > 0:
+        assert len(told) == 1 and "unstable (pole 3 1/s: a departure that grows with time " \
+            "constant 0.333 s" in told[0]
+    else:
+        assert not told
