@@ -26,8 +26,11 @@ Algorithm
    each block as many columns as equations are chosen by QR with column pivoting. Rows are scaled
    to unit maximum, columns by the variable's nominal magnitude, by ``ORDER_PREFERENCE`` per
    derivative order above one (a second derivative of a position is made a dummy before a mass's
-   own velocity loses its state) and by ``START_PREFERENCE`` (variables with a start value the
-   user gave keep their state). The chosen derivatives become *dummy derivatives*: plain
+   own velocity loses its state), by ``START_PREFERENCE`` (variables with a start value the
+   user gave keep their state) and by ``ANGLE_PREFERENCE`` (shaft angles and speeds keep their
+   state, as Modelica's revolute joints prefer theirs: a crank turns on for ever, the position
+   of the slider it drives is bounded and its derivative vanishes at the dead centres); the
+   parameters in the entries take their values. The chosen derivatives become *dummy derivatives*: plain
    algebraic unknowns. The next level down uses the equations one differentiation lower and the
    anti-derivatives of the dummies chosen. A block singular at the start values is refused with
    the equations' names (redundant constraints); one whose entries cannot be evaluated there is
@@ -85,6 +88,7 @@ PIVOT_RATIO = 0.1            # a pivot block's |det| below this fraction of its 
 PIVOT_RANK_TOL = 1e-9        # relative size of the last pivot of a numerically full-rank block
 MONITOR_MAX_BLOCK = 3        # larger non-constant pivot blocks are not watched (cost of det)
 START_PREFERENCE = {0: 1.0, 1: 0.7, 2: 0.4}   # column weights: given starts stay states
+ANGLE_PREFERENCE = 1e-3      # column weight of an angle or angular speed: they stay states
 ORDER_PREFERENCE = 1e4       # column weight per derivative order above one: dummy those first,
                              # rather than make a velocity a second state beside the mass's own
 START_RTOL = 1e-6            # relative mismatch between a given start and a consistent value
@@ -648,7 +652,8 @@ class _Reducer:
     def _preference(self, v):
         base = self.var_key[v][0]
         prio = 2 if base in self.given else self.infos[base].start_priority
-        return START_PREFERENCE.get(prio, 1.0)
+        angle = self.infos[base].unit in ("rad", "rad/s")
+        return START_PREFERENCE.get(prio, 1.0) * (ANGLE_PREFERENCE if angle else 1.0)
 
     def _label(self, k):
         src, times = self.eq_src[k]
@@ -746,7 +751,8 @@ class _Reducer:
         for level, eqs, chosen, block in blocks:
             b = _Block(level, [self._label(k) for k in eqs],
                        [derivative_name(*self.var_key[v]) for v in chosen])
-            if not all(E.is_const(x) for row in block for x in row):
+            # a pivot of numbers and parameters only (a gear's ratio) cannot change in a run
+            if any(E.leaves(x, ("sym", "der")) for row in block for x in row):
                 if len(chosen) <= MONITOR_MAX_BLOCK:
                     det = _det(block)
                     try:
