@@ -29,8 +29,9 @@ Algorithm
    own velocity loses its state), by ``START_PREFERENCE`` (variables with a start value the
    user gave keep their state) and by ``ANGLE_PREFERENCE`` (shaft angles and speeds keep their
    state, as Modelica's revolute joints prefer theirs: a crank turns on for ever, the position
-   of the slider it drives is bounded and its derivative vanishes at the dead centres); the
-   parameters in the entries take their values. The chosen derivatives become *dummy derivatives*: plain
+   of the slider it drives is bounded and its derivative vanishes at the dead centres). The
+   entries read the parameters' values; a block of numbers and parameters only (a gear's or a
+   lever's ratio, constant through a run) keeps the matching's choice where that is regular. The chosen derivatives become *dummy derivatives*: plain
    algebraic unknowns. The next level down uses the equations one differentiation lower and the
    anti-derivatives of the dummies chosen. A block singular at the start values is refused with
    the equations' names (redundant constraints); one whose entries cannot be evaluated there is
@@ -618,10 +619,21 @@ class _Reducer:
             scale_rows[scale_rows == 0.0] = 1.0
             Hs = H / scale_rows
             w = np.array([self.infos[self.var_key[v][0]].nominal * self._preference(v)
+                          * self._angle_weight(v)
                           * ORDER_PREFERENCE ** (self.var_key[v][1] - 1) for v in cand])
             Hs = Hs * w
             _, R, piv = qr(Hs, pivoting=True, mode="economic")
             if len(piv) >= m and abs(R[m - 1, m - 1]) > PIVOT_RANK_TOL * abs(R[0, 0]):
+                entries = [d for row in jac for d in row]
+                if any(E.leaves(d, ("param",)) for d in entries) and \
+                        not any(E.leaves(d, ("sym", "der")) for d in entries):
+                    # entries of numbers and parameters (a gear's, a lever's ratio): constant
+                    # through a run, so any regular choice serves; the matching's is kept
+                    # where it is regular (the parameters' values only check the block)
+                    got = self._structural(jac, cand)
+                    if got is not None and np.linalg.matrix_rank(
+                            Hs[:, got], tol=PIVOT_RANK_TOL * abs(R[0, 0])) == m:
+                        return got
                 return sorted(int(j) for j in piv[:m])
             raise StructureError(
                 "index reduction: the hidden constraints "
@@ -635,6 +647,17 @@ class _Reducer:
                   "of gears) leave the force shared between them undetermined: give one of "
                   "them a mesh stiffness (k).")
         # not evaluable at the start: a structural choice
+        got = self._structural(jac, cand)
+        if got is None:
+            raise StructureError(
+                "index reduction: the differentiated equations "
+                + "; ".join(self._label(k) for k in eqs)
+                + " cannot be solved for any of the derivatives "
+                + ", ".join(derivative_name(*self.var_key[v]) for v in cand))
+        return got
+
+    def _structural(self, jac, cand):
+        """A choice of columns by matching alone, in the preference order (or None)."""
         cols = [[j for j, d in enumerate(row) if not E.is_const(d, 0.0)] for row in jac]
         order = sorted(range(len(cand)), key=lambda j: (-self.var_key[cand[j]][1],
                                                         -self._preference(cand[j])))
@@ -642,18 +665,17 @@ class _Reducer:
         cols = [sorted(c, key=lambda j: rank[j]) for c in cols]
         match = _matching(cols, len(cand))
         if np.any(match < 0):
-            raise StructureError(
-                "index reduction: the differentiated equations "
-                + "; ".join(self._label(k) for k in eqs)
-                + " cannot be solved for any of the derivatives "
-                + ", ".join(derivative_name(*self.var_key[v]) for v in cand))
+            return None
         return sorted(int(j) for j in match)
 
     def _preference(self, v):
         base = self.var_key[v][0]
         prio = 2 if base in self.given else self.infos[base].start_priority
-        angle = self.infos[base].unit in ("rad", "rad/s")
-        return START_PREFERENCE.get(prio, 1.0) * (ANGLE_PREFERENCE if angle else 1.0)
+        return START_PREFERENCE.get(prio, 1.0)
+
+    def _angle_weight(self, v):
+        return ANGLE_PREFERENCE if self.infos[self.var_key[v][0]].unit in ("rad", "rad/s") \
+            else 1.0
 
     def _label(self, k):
         src, times = self.eq_src[k]

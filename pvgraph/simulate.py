@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import re
 import sys
 import tempfile
 import types
@@ -347,11 +348,16 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
             except InitializationError:
                 pass
         if res is None:
+            named = re.findall(r"'([^']+)'", str(exc))
             if "did not converge" not in str(exc):
-                hint = _massless_hint(system) if "singular" in str(exc) else ""
+                hint = ""
+                if "singular" in str(exc):
+                    hint = _massless_hint(system) or _rigid_node_hint(system, named)
                 if hint:
                     raise InitializationError(f"{exc} {hint}") from None
                 raise
+            if not any(u == "Pa" and a for u, a in zip(system.units, system.algebraic)):
+                raise   # no pressure without a volume: the valve advice does not apply
             raise InitializationError(
                 f"{exc} A valve fed by a flow source with no volume on its node starts closed, "
                 f"where its opening law is flat: put a VolumeNode on that node, or give its "
@@ -407,6 +413,20 @@ def _stiff_node_hint(system, culprits) -> str:
             f"oil somewhere to go.")
 
 
+def _rigid_node_hint(system, named) -> str:
+    """A sentence for a singular start among whose ``named`` variables is a pressure with no
+    volume on its node, or "": displacement machines or pistons meeting there without
+    leakage tie their motions rigidly through the oil, which the equations do not resolve."""
+    bare = [n for n in named if n in system.index and system.units[system.index[n]] == "Pa"
+            and system.algebraic[system.index[n]]]
+    if not bare:
+        return ""
+    return (f"{bare[0]!r} has no volume on its node: the pumps, motors or pistons meeting "
+            f"there with no leakage tie their motions to each other rigidly through the oil. "
+            f"Put a VolumeNode on that node (the line's oil, however small), or give a machine "
+            f"leakage (eta_v < 1).")
+
+
 def _massless_hint(system) -> str:
     """A sentence naming the shafts and flanges that move with nothing carrying inertia on
     them (no part with a mass ``m`` or an inertia ``J``), or "" where there are none.
@@ -417,7 +437,9 @@ def _massless_hint(system) -> str:
     groups: dict = {}
     for path, comp in (getattr(system, "_components", None) or {}).items():
         params = getattr(comp, "params", None)
-        heavy = getattr(params, "m", None) is not None or getattr(params, "J", None) is not None
+        # a part with a mass or an inertia, or one that sets the motion (a speed source)
+        heavy = getattr(params, "m", None) is not None or getattr(params, "J", None) is not None \
+            or getattr(type(comp), "prescribes_motion", False)
         for port_name, port in type(comp).ports.items():
             domain = port.domain
             if domain.through is None or domain.name == "hydraulic":

@@ -781,3 +781,33 @@ def test_an_own_component_reading_a_wrong_port_variable_or_parameter_is_named():
     with pytest.raises(AttributeError, match=r"spr: its parameters \(_SpringParams\) have no "
                                              r"field 'F0'"):
         _on_a_mass(_NoSuchParam).compile()
+
+
+def test_a_pump_straight_into_a_motor_without_leakage_names_the_node_without_volume():
+    """eta_v = 1 on both machines and no volume between them: the pump sets the motor's speed
+    rigidly through the oil; the singular start names the pressure of that node and the two
+    ways out (not the speed source's shaft, whose speed is set). With leakage it runs to
+    w_m = D_p w_p / (D_m + (K_p + K_m) b / D_m)."""
+    from pvgraph.components import FixedDisplacementPump, HydraulicMotor, SpeedSource
+    from pvgraph.errors import InitializationError
+
+    def build(eta_v):
+        c = Circuit("pm")
+        src = c.add("S", SpeedSource(w0=150.0))
+        pump = c.add("P", FixedDisplacementPump(D="10 cm^3/rev", eta_v=eta_v, eta_hm=1.0))
+        motor = c.add("M", HydraulicMotor(D="20 cm^3/rev", eta_v=eta_v, eta_hm=1.0))
+        load = c.add("I", Inertia(J=0.5, b=0.01))
+        t1, t2 = c.add("T1", Tank()), c.add("T2", Tank())
+        c.connect(src.shaft, pump.shaft)
+        c.connect(pump.a, t1.port)
+        c.connect(motor.B, t2.port)
+        c.connect(motor.shaft, load.shaft)
+        c.connect(pump.b, motor.A)
+        return c
+    with pytest.raises(InitializationError) as info:
+        simulate(build(1.0), 0.1)
+    said = str(info.value)
+    assert "'M.A.p' has no volume on its node" in said and "eta_v < 1" in said
+    assert "Nothing with inertia moves" not in said
+    sol = simulate(build(0.95), 2.0, rtol=1e-8)
+    assert 74.0 < sol.final("I.w") < 75.0        # D_p w_p / D_m = 75 less the leakage

@@ -40,6 +40,7 @@ class ForceInput(Component):
 class PositionInput(Component):
     """Position source driven by a signal: ``flange.x = u`` [m]; it may drive a mass directly."""
 
+    prescribes_motion = True   # sets its port's motion: no inertia needed there
     ports = {"flange": Mechanical("the driven node"),
              "u": SignalIn("position set point", "m", 1e-3)}
 

@@ -72,6 +72,7 @@ class FixedParams(Params):
 class Fixed(Component):
     """Mechanical ground: the flange is held at ``x0`` and takes any force."""
 
+    prescribes_motion = True   # sets its port's motion: no inertia needed there
     Params = FixedParams
     ports = {"flange": Mechanical("the fixed point")}
 

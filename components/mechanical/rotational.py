@@ -123,6 +123,7 @@ class SpeedSourceParams(Params):
 class SpeedSource(Component):
     """Ideal motor at constant speed ``w0``: ``der(phi) = w0``; supplies any torque."""
 
+    prescribes_motion = True   # sets its port's motion: no inertia needed there
     Params = SpeedSourceParams
     ports = {"shaft": Rotational("the driven shaft")}
 
@@ -134,6 +135,7 @@ class SpeedSource(Component):
 class SpeedInput(Component):
     """Ideal motor at the speed of a signal: ``der(phi) = u`` [rad/s]."""
 
+    prescribes_motion = True   # sets its port's motion: no inertia needed there
     ports = {"shaft": Rotational("the driven shaft"), "u": SignalIn("speed", "rad/s", 10.0)}
 
     def equations(self, v, p):
@@ -147,6 +149,7 @@ class RotationalFixedParams(Params):
 class RotationalFixed(Component):
     """Rotational ground: ``phi = phi0``; takes any torque."""
 
+    prescribes_motion = True   # sets its port's motion: no inertia needed there
     Params = RotationalFixedParams
     ports = {"shaft": Rotational("the fixed point")}
 

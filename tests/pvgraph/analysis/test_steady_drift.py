@@ -70,7 +70,7 @@ def test_two_inertias_on_an_elastic_shaft_turn_at_torque_over_friction():
 
 @pytest.mark.parametrize("k", [None, 1e6])
 def test_gear_train_turns_at_the_reflected_friction(k):
-    """Ideal gears (index-reduced: one shaft's angle rate is a dummy) and compliant ones."""
+    """Ideal gears (index-reduced: the state is der(i2.shaft.phi)) and compliant ones."""
     s = gears(k).compile()
     op = steady_state(s)
     w1 = T / (B * (R1 / R2) ** 2)                              # 32 rad/s
@@ -83,12 +83,8 @@ def test_gear_train_turns_at_the_reflected_friction(k):
     ratio = drift["i1.shaft.phi"] / drift["i2.shaft.phi"]
     assert ratio == pytest.approx(R2 / R1, rel=1e-12)
     if k is None:
-        # one shaft's angle rate is a dummy derivative (which one follows the pivot)
-        dummy = [n for n in ("der(i1.shaft.phi)", "der(i2.shaft.phi)") if n in s.names]
-        assert len(dummy) == 1
-        rate = {"der(i1.shaft.phi)": w1, "der(i2.shaft.phi)": w1 * R1 / R2}[dummy[0]]
-        assert op[dummy[0]] == pytest.approx(rate, rel=1e-9)
-        assert op[dummy[0].replace(".shaft.phi)", ".w)")] == pytest.approx(0.0, abs=1e-9)
+        assert op["der(i2.shaft.phi)"] == pytest.approx(w1 * R1 / R2, rel=1e-9)
+        assert op["der(i2.w)"] == pytest.approx(0.0, abs=1e-9)
         assert R1 * op["i1.shaft.phi"] == pytest.approx(R2 * op["i2.shaft.phi"], abs=1e-12)
     else:                                   # the mesh is compressed by f / k
         gap = R1 * op["i1.shaft.phi"] - R2 * op["i2.shaft.phi"]
