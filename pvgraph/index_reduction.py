@@ -94,6 +94,8 @@ ORDER_PREFERENCE = 1e4       # column weight per derivative order above one: dum
                              # rather than make a velocity a second state beside the mass's own
 START_RTOL = 1e-6            # relative mismatch between a given start and a consistent value
 IC_MAX_ITERS = 30            # Newton iterations of the start-value check
+STEP_HALVINGS = 30           # halvings of a step moving the states towards given start values
+NUDGE = 1e-2                 # move of the free states (in nominal units) off a singular start
 IC_TOL = 1e-10               # relative Newton step accepted as converged there
 EVENT_OWNER = "index_reduction"
 NAMES_IN_MESSAGES = 12       # conflicting start values listed in one message
@@ -306,27 +308,60 @@ class IndexReduction:
         offs = np.array([o for _, _, _, _, o in loose])
         scale = np.maximum(np.abs(targets), system.nominal[idxs])
         rows = None
+        nudged = False
+        yc, ypc, ok = _consistent_values(system, t0, y, yp)
+        if not ok:
+            return []   # the solver's own initialisation will report what is wrong
         for _ in range(IC_MAX_ITERS):
-            yc, ypc, ok = _consistent_values(system, t0, y, yp)
-            if not ok:
-                return []   # the solver's own initialisation will report what is wrong
             r = (coefs * yc[idxs] + offs - targets) / scale
             if free.size == 0:
                 rows = []
                 break
             G = self._sensitivity(system, t0, yc, ypc, free, idxs) * (coefs / scale)[:, None]
             Gs = G * system.nominal[free][None, :]
+            tol = PIVOT_RANK_TOL * max(1.0, np.max(np.abs(Gs)))
             if rows is None:   # the given values that fix independent directions, in order
                 rows = []
                 for k in range(len(loose)):
                     trial = rows + [k]
-                    if np.linalg.matrix_rank(Gs[trial], tol=PIVOT_RANK_TOL * max(
-                            1.0, np.max(np.abs(Gs)))) == len(trial):
+                    if np.linalg.matrix_rank(Gs[trial], tol=tol) == len(trial):
                         rows = trial
+                if not rows and not nudged and np.any(np.abs(r) > START_RTOL):
+                    # the start sits where the given variables do not move with the states
+                    # (a crank at its dead centre): step off it and look again
+                    nudged, rows, before = True, None, y[free].copy()
+                    y[free] += NUDGE * system.nominal[free]
+                    yc, ypc, ok = _consistent_values(system, t0, y, yp)
+                    if not ok:
+                        return []
+                    continue
             if not rows or np.all(np.abs(r[rows]) <= START_RTOL * 1e-3):
                 break
-            step = np.linalg.lstsq(Gs[rows], -r[rows], rcond=None)[0]
-            y[free] += step * system.nominal[free]
+            step = np.linalg.lstsq(Gs[rows], -r[rows], rcond=None)[0] * system.nominal[free]
+            # a step the constraints cannot follow (past the reach of a link) or that does not
+            # bring the given values closer is halved
+            base, size, lam = y[free].copy(), np.linalg.norm(r[rows]), 1.0
+            for _ in range(STEP_HALVINGS):
+                y[free] = base + lam * step
+                yc2, ypc2, ok = _consistent_values(system, t0, y, yp)
+                if ok and np.linalg.norm(((coefs * yc2[idxs] + offs - targets)
+                                          / scale)[rows]) < size:
+                    yc, ypc = yc2, ypc2
+                    break
+                lam *= 0.5
+            else:
+                y[free] = base
+                break
+        if nudged and not rows:     # stepping off did not help: back where it was
+            y[free] = before
+            yc, ypc, _ = _consistent_values(system, t0, y, yp)
+        elif nudged and free.size:
+            # the states the given values do not depend on (a velocity, for a given position)
+            # go back to where they were
+            unused = np.all(np.abs(Gs) <= tol, axis=0)
+            if unused.any():
+                y[free[unused]] = before[unused]
+                yc, ypc, _ = _consistent_values(system, t0, y, yp)
         rows = rows or []
         bad = []
         fixing = ", ".join(f"{loose[k][0]} = {loose[k][1]:.6g}" for k in rows)

@@ -364,3 +364,19 @@ def test_a_position_source_driven_by_a_jumping_signal_warns_of_the_lost_impulse(
     with pytest.warns(StructureWarning, match=rf"differentiates sig equation 1 .* twice, and it "
                                               rf"reads {warned}.*impulse"):
         c.compile()
+
+
+@pytest.mark.parametrize("theta0", [0.1, 0.0])
+def test_a_start_on_the_constrained_coordinate_moves_the_state_far_and_off_the_bottom(theta0):
+    """Pendulum L = 1 m with x, vx as states: y0 = -0.5 given moves x to sqrt(1 - 0.25) (a
+    move of 0.77 m from theta0 = 0.1, and from the bottom, where y does not move with x at
+    first), energy from there on as for a release at 60 degrees."""
+    c = Circuit("pendulum")
+    c.add("p", Pendulum(theta0=theta0, L=1.0))
+    s = c.compile()
+    sol = simulate(s, 0.2, rtol=1e-9, start={"p.y": -0.5},
+                   t_eval=np.array([0.0, 0.1, 0.2]))
+    assert sol["p.y"][0] == pytest.approx(-0.5, abs=1e-9)
+    assert sol["p.x"][0] == pytest.approx(math.sqrt(0.75), abs=1e-9)
+    energy = 0.5 * (sol["p.vx"] ** 2 + sol["p.vy"] ** 2) + G * sol["p.y"]
+    assert np.allclose(energy, -0.5 * G, atol=1e-6)

@@ -5,6 +5,8 @@ Closed forms: a torque T on inertia J1 joined to J2 (bearing friction b) turns b
 w = T / b; through two ideal rack-pinions (r1 on J1, r2 on J2) w1 = T / (b (r1/r2)^2),
 w2 = w1 r1 / r2, rack force T / r1."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -219,3 +221,25 @@ def test_a_crank_is_no_drift_direction():
     c.connect(cr.flange, m.flange)
     with pytest.raises(InitializationError, match="no steady state found"):
         steady_state(c.compile())
+
+
+def test_a_crank_turns_through_its_dead_centres_and_starts_from_its_slider():
+    """x = r sin(phi): the angle stays the state (the slider's position turns back at the dead
+    centres, where it could not be one), so a torque keeps the crank turning; a slider start
+    x0 = 0.05 m given moves the angle to a consistent one, r sin(phi) = x0 (phi = pi/6)."""
+    from pvgraph.simulate import simulate
+    c = Circuit("crank")
+    ts = c.add("ts", TorqueSource(T=0.5))
+    i = c.add("i", Inertia(J=0.01, b=0.01))
+    cr = c.add("cr", Crank(r=0.1))
+    m = c.add("m", Mass(m=2.0, b=10.0, x0=0.05))
+    c.connect(ts.shaft, i.shaft, cr.shaft)
+    c.connect(cr.flange, m.flange)
+    s = c.compile()
+    assert {"i.shaft.phi", "i.w"} <= {n for n, d in zip(s.names, s.differential) if d}
+    sol = simulate(s, 3.0, rtol=1e-7)
+    assert sol["m.flange.x"][0] == pytest.approx(0.05, abs=1e-9)
+    assert sol["i.shaft.phi"][0] == pytest.approx(math.pi / 6, abs=1e-8)
+    assert sol.final("i.shaft.phi") > 4 * math.pi          # past several dead centres
+    # the constraint holds to the Newton tolerance of the algebraic position
+    assert np.max(np.abs(sol["m.flange.x"] - 0.1 * np.sin(sol["i.shaft.phi"]))) < 1e-6
