@@ -366,7 +366,10 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         raise PvgraphError(f"{system.name}: simulation stopped early: {res.message}")
     sol = Solution(system, res.t, res.y, res.yp, events=res.events, stats=res.stats,
                    mode_log=system.mode_log, solver=solver)
-    _check_starts_kept(sol, given)
+    if calc_initial == "all" and reduction is not None and reduction.given:
+        # the components' given starts (Mass(x0=...)) are moved by "all" as start= ones are
+        given = {**reduction.given, **given}
+    _check_starts_kept(sol, given, calc_initial)
     _check_pressures(sol)
     return sol
 
@@ -492,7 +495,7 @@ def _algebraic_start(system, exc, y, t0, calc_initial):
     return start
 
 
-def _check_starts_kept(sol, given) -> None:
+def _check_starts_kept(sol, given, calc_initial="algebraic") -> None:
     """Warn of each ``start=`` value the consistent start did not keep.
 
     A start value of an algebraic variable (the pressure of a node without volume, a flow)
@@ -505,6 +508,13 @@ def _check_starts_kept(sol, given) -> None:
         _, idx, _ = system.resolve(name)
         scale = max(abs(value), abs(got), float(system.nominal[idx]))
         if abs(got - value) <= 1e-4 * scale:
+            continue
+        if idx is not None and not system.algebraic[idx]:
+            warnings.warn(StartValueWarning(
+                f"{system.name}: start value for {name!r} ({value:.6g}) was not kept; the run "
+                f"starts at {got:.6g}: calc_initial={calc_initial!r} computes the states too "
+                f"(from y' given). Use calc_initial='algebraic' (the default) to start the "
+                f"states at their start values."), stacklevel=outside_stacklevel())
             continue
         states = [nm for nm, alg in zip(system.names, system.algebraic) if not alg]
         shown = ", ".join(states[:6]) + (", ..." if len(states) > 6 else "")

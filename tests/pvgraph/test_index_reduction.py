@@ -380,3 +380,20 @@ def test_a_start_on_the_constrained_coordinate_moves_the_state_far_and_off_the_b
     assert sol["p.x"][0] == pytest.approx(math.sqrt(0.75), abs=1e-9)
     energy = 0.5 * (sol["p.vx"] ** 2 + sol["p.vy"] ** 2) + G * sol["p.y"]
     assert np.allclose(energy, -0.5 * G, atol=1e-6)
+
+
+def test_calc_initial_all_moving_a_given_state_is_told():
+    """calc_initial="all" computes every unknown from y' = 0, the states too: a pendulum
+    started at x = 0.3 hangs at the bottom instead, and the user is told so."""
+    from pvgraph.errors import StartValueWarning
+
+    class Hanging(Pendulum):   # the link's tension starts at its value at rest, m g / L
+        variables = {**Pendulum.variables,
+                     "lam": Variable("N/m", lambda p: p.m * G / p.L, 10.0, "link tension")}
+    c = Circuit("pendulum")
+    c.add("p", Hanging(theta0=0.1))
+    with pytest.warns(StartValueWarning, match=r"'p.x' \(0.3\) was not kept.*calc_initial='all'"):
+        sol = simulate(c, 0.1, calc_initial="all", start={"p.x": 0.3})
+    assert abs(sol["p.x"][0]) < 1e-6        # the rest position, as told
+    kept = simulate(c, 0.1, start={"p.x": 0.3})
+    assert kept["p.x"][0] == pytest.approx(0.3, abs=1e-12)
