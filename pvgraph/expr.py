@@ -109,6 +109,28 @@ class Expr:
     def __abs__(self):
         return fabs(self)
 
+    # numpy's functions call these on objects: np.sin(v.x) in equations stays symbolic
+    def sqrt(self):
+        return sqrt(self)
+
+    def exp(self):
+        return exp(self)
+
+    def log(self):
+        return log(self)
+
+    def tanh(self):
+        return tanh(self)
+
+    def sin(self):
+        return sin(self)
+
+    def cos(self):
+        return cos(self)
+
+    def arctan(self):
+        return atan(self)
+
     # comparisons build condition nodes for `where`; equality keeps identity semantics so that
     # expressions can live in sets and dicts.
     def __lt__(self, other):

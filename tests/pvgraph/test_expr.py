@@ -158,3 +158,17 @@ def test_held_table_slope_on_an_end_knot_is_the_inside_one(method):
         assert tab.slope(end + (2e-15 if end else -2e-15)) == tab.slope(end)  # just outside
     assert tab.slope(-1e-6) == 0.0 and tab.slope(4.0 + 1e-6) == 0.0
     assert tab.value(4.0 + 1e-6) == 7.0 and tab.value(-1e-6) == 0.0
+
+
+def test_numpy_functions_on_symbols_stay_symbolic():
+    """np.sin(v.x) in an own component's equations is the vocabulary's sin, not numpy's error
+    ("loop of ufunc does not support argument 0 of type Expr")."""
+    import numpy as np
+    x = E.Expr("param", (), "x")
+    pairs = [(np.sin, E.sin), (np.cos, E.cos), (np.exp, E.exp), (np.log, E.log),
+             (np.sqrt, E.sqrt), (np.tanh, E.tanh), (np.arctan, E.atan), (np.abs, E.fabs)]
+    for np_fn, fn in pairs:
+        got = np_fn(2.0 * x + 1.0)
+        assert isinstance(got, E.Expr)
+        assert E.to_text(got) == E.to_text(fn(2.0 * x + 1.0))
+        assert E.evaluate(got, {"x": 0.3}) == pytest.approx(float(np_fn(1.6)), rel=1e-15)
