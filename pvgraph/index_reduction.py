@@ -31,9 +31,10 @@ Algorithm
    state, as Modelica's revolute joints prefer theirs: a crank turns on for ever, the position
    of the slider it drives is bounded and its derivative vanishes at the dead centres). The
    entries read the parameters' values; a block of numbers and parameters only (a gear's or a
-   lever's ratio, constant through a run) keeps the matching's choice where that is regular. The chosen derivatives become *dummy derivatives*: plain
-   algebraic unknowns. The next level down uses the equations one differentiation lower and the
-   anti-derivatives of the dummies chosen. A block singular at the start values is refused with
+   lever's ratio, constant through a run) keeps the matching's choice where that is regular.
+   The chosen derivatives become *dummy derivatives*: plain algebraic unknowns. The next level
+   down uses the equations one differentiation lower and the anti-derivatives of the dummies
+   chosen. A block singular at the start values is refused with
    the equations' names (redundant constraints); one whose entries cannot be evaluated there is
    chosen structurally (a matching in the same preference order).
 4. *First-order form.* For each variable ``x`` with derivatives ``x, x', ..., x^(k)`` of which
