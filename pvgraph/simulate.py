@@ -295,7 +295,7 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         from .circuit import parameter_values
         params = parameter_values(params, "simulate: params")
     if params:
-        system = system.with_params(params, recompile=recompile)
+        system = system.with_params(params, recompile=recompile, _starts_follow=bool(start))
     y_init = _full_vector(system, system.y0 if y0 is None else y0, "y0")
     yp_init = _full_vector(system, system.yp0 if yp0 is None else yp0, "yp0")
     given = {}
@@ -309,8 +309,10 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     reduction = getattr(system, "index_reduction", None)
     if given and reduction is not None and reduction.reduced:
         # a start on a variable the constraints determine moves the state it is tied to;
-        # contradicting ones are refused with the values the constraints force
-        reduction.impose(system, given, y_init, yp_init, t_start)
+        # contradicting ones are refused with the values the constraints force. After runtime
+        # parameters, the start values they changed are imposed with these (these win)
+        pending = system.__dict__.pop("_pending_starts", None) or {}
+        reduction.impose(system, {**pending, **given}, y_init, yp_init, t_start)
     atol_vec = (rtol if atol is None else atol) * system.nominal
     system.reset_modes()
     system.apply_start_events(t_start, y_init, yp_init)
@@ -562,8 +564,9 @@ def _check_pressures(sol: Solution) -> None:
         warnings.warn(PlausibilityWarning(
             f"{system.name}: implausible pressure: {listed}. A flow source or pump feeding a "
             f"closed valve or a dead end with no leakage and no relief builds pressure without "
-            f"bound; add a relief valve (CheckValve to tank), a leakage area or an outlet."),
-            stacklevel=3)
+            f"bound; add a relief valve (CheckValve to tank), a leakage area or an outlet. "
+            f"Where such a pressure is meant (an intensifier's area ratio), raise "
+            f"pvgraph.simulate.PRESSURE_LIMIT."), stacklevel=3)
 
 
 class _CallableModule(types.ModuleType):
@@ -573,6 +576,10 @@ class _CallableModule(types.ModuleType):
 
     def __call__(self, *args, **kwargs):
         return simulate(*args, **kwargs)
+
+    def __reduce__(self):   # pickled by name (a partial of it sent to a process pool)
+        import importlib
+        return importlib.import_module, (self.__name__,)
 
 
 sys.modules[__name__].__class__ = _CallableModule

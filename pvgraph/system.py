@@ -34,7 +34,7 @@ from scipy.sparse import csc_matrix, csr_matrix
 
 from . import codegen
 from . import expr as E
-from .errors import CircuitError, ParameterError
+from .errors import CircuitError, InitializationError, ParameterError
 
 __all__ = ["System", "build_system", "ModeView", "RecompileWarning"]
 
@@ -592,7 +592,7 @@ class System:
         return "\n".join(rows)
 
     def with_params(self, values: Mapping[str, float] | None = None, *,
-                    recompile: bool = True) -> "System":
+                    recompile: bool = True, _starts_follow: bool = False) -> "System":
         """This system with other parameter values, sharing its compiled code.
 
         ``values`` maps parameter names (``"orifice.A"``: component path and field) to numbers
@@ -667,7 +667,15 @@ class System:
             # as a fresh compilation would: the given starts hold under the new values (a rack
             # position given stays where it is when the pinion's radius changes, the pinion
             # angle moves)
-            reduction.restart(new, started)
+            try:
+                reduction.restart(new, started)
+            except InitializationError:
+                if not _starts_follow:
+                    raise
+                # simulate(start=...) follows and wins over the starts the components gave:
+                # those it changed are imposed with its values there
+                new.y0, new.yp0 = self.y0.copy(), self.yp0.copy()
+                new._pending_starts = started
         return new
 
     def _update_derived(self):

@@ -709,7 +709,9 @@ def _check_pressures(system, y):
         warnings.warn(PlausibilityWarning(
             f"{system.name}: implausible steady pressure (beyond {PRESSURE_LIMIT / 1e5:.0f} "
             f"bar): {listed}. A flow source or pump feeding a closed valve or a dead end holds "
-            f"a steady state only through leakage; add a relief valve or an outlet."),
+            f"a steady state only through leakage; add a relief valve or an outlet. Where such "
+            f"a pressure is meant (an intensifier's area ratio), raise "
+            f"pvgraph.simulate.PRESSURE_LIMIT."),
             stacklevel=3)
     # pressures are gauge: below -p_atm + p_vap the oil would have to carry tension. A run
     # stops there (every chamber limits its pressure at the vapour pressure); the steady

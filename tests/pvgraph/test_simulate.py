@@ -435,3 +435,15 @@ def test_the_package_runs_simulate_and_the_analyses_by_their_names():
     assert {"simulate", "steady_state", "sweep", "calibrate"} <= set(dir(pvgraph))
     with pytest.raises(AttributeError, match="no attribute 'simulat'"):
         pvgraph.simulat
+
+
+def test_the_package_simulate_pickles_by_name():
+    """``pvgraph.simulate`` (the callable module) and a partial of it go to a process pool."""
+    import functools
+    import pickle
+
+    import pvgraph
+    again = pickle.loads(pickle.dumps(pvgraph.simulate))
+    assert again is pvgraph.simulate and callable(again)
+    part = pickle.loads(pickle.dumps(functools.partial(pvgraph.simulate, t_end=0.1)))
+    assert part.func is pvgraph.simulate
