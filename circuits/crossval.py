@@ -726,7 +726,10 @@ def format_cross_validation(cv: CrossValidation) -> str:
             for q in QUANTITIES:
                 r = qs[q]
                 code = ROLE_CODES[r["role"]]
-                cells.append("  failed " if r["error"] is None else f"{r['error']:+7.2f}{code}")
+                tol = to_lpm(FLOW_TOL) if q.startswith("Q") else to_bar(PRESSURE_TOL)
+                cells.append("  failed " if r["error"] is None else
+                             f"{'-' if r['error'] < 0 else '+'}"
+                             f"{shown_against(abs(r['error']), tol)}{code}")
             fold = qs["Q_total"]["fold"]
             lines.append(f"{name:9s} {fold[:30]:30s} | {cells[0]:>9s} {cells[1]:>9s} | "
                          f"{cells[2]:>8s} {cells[3]:>8s} {cells[4]:>8s}")

@@ -68,6 +68,8 @@ def test_a_miss_is_never_printed_as_the_tolerance():
     assert "held-out flow within 1 L/min (non-neutral points): 0/1 (worst 1.002 at sweep-6" \
         in text
     assert "miss  held-out flow" in text
+    row = next(ln for ln in text.splitlines() if ln.startswith("sweep-6"))
+    assert row.split("|")[1].split() == ["-1.002h", "+0.00t"]         # the cell reads as a miss
 
 
 def test_table_4_8_constants_are_single_tests_q_over_dp():
