@@ -286,7 +286,7 @@ def targets(results, roles: dict | None = None) -> dict:
                               MODEL_CHECK))
         step = s.solenoid_event in ("opening", "closing")
         (settled_ok if step else steady_ok).append(
-            (r.name, r.settle_deviation, r.settled, MODEL_CHECK))
+            (r.name, to_bar(r.settle_deviation), r.settled, MODEL_CHECK))
     return {
         "flow within 1 L/min (non-neutral points)": _count(flow_ok),
         "Pf, Pm, Pb within 2 bar (step tests)": _count(step_ok),
@@ -316,8 +316,9 @@ def role_breakdown(rows) -> str:
 
 
 def targets_record(results, roles: dict | None = None) -> dict:
-    """The targets as JSON: ``{label: {passed, total, by_role: {role: {passed, total}},
-    rows: [{scenario, number, ok, role}]}}``."""
+    """The targets as JSON: ``{label: {passed, total, unit, by_role: {role: {passed, total}},
+    rows: [{scenario, number, ok, role}]}}``; ``number`` is the judged error (the flow's, the
+    worst of Pf, Pm, Pb), the PVP margin or the settling deviation, in ``unit``."""
     out = {}
     for label, (ok, total, rows) in targets(results, roles).items():
         by_role: dict = {}
@@ -325,7 +326,8 @@ def targets_record(results, roles: dict | None = None) -> dict:
             d = by_role.setdefault(row[3], {"passed": 0, "total": 0})
             d["passed"] += bool(row[2])
             d["total"] += 1
-        out[label] = {"passed": int(ok), "total": total, "by_role": by_role,
+        out[label] = {"passed": int(ok), "total": total,
+                      "unit": "L/min" if label.startswith("flow") else "bar", "by_role": by_role,
                       "rows": [{"scenario": n, "number": None if not math.isfinite(v)
                                 else round(float(v), 4), "ok": bool(k), "role": rl}
                                for n, v, k, rl in rows]}

@@ -607,6 +607,10 @@ def test_validate_roles_per_configuration_and_model_checks(tmp_path, capsys):
     assert {n: r["role"] for n, r in step_rows.items()} == {
         "test-4": "fit", "test-5": "held-out", "test-6": "repeat"}
     assert step_rows["test-5"]["number"] == pytest.approx(2.45, abs=0.05)
+    settle = goals["settled within 0.5 s of the solenoid step (step tests)"]
+    assert settle["unit"] == "bar"
+    # within 0.5 bar (or 2 %) of the final Pf from 0.5 s after the step
+    assert all(0.0 <= r["number"] <= 0.5 + 0.02 * 43.0 for r in settle["rows"])
 
 
 @pytest.mark.parametrize("args, message", [
