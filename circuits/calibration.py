@@ -53,8 +53,8 @@ from .pvg32.parameters import (PVG32Params, parameter_field, report_initial, rep
 from .rig import build_rig, laminar_load
 from .scenarios import Scenario, all_scenarios
 
-__all__ = ["FIT_PARAMETERS", "DEFAULT_FIT", "TABLE_4_14", "fit_parameter", "calibration_data",
-           "residual_summary",
+__all__ = ["FIT_PARAMETERS", "DEFAULT_FIT", "TABLE_4_14", "REPORT_SOURCES", "report_table",
+           "fit_parameter", "calibration_data", "residual_summary",
            "RigSteadyModel", "calibrate_rig"]
 
 EXCLUDED = ("sweep-1", "sweep-2")         # neutral spool: trapped pressure (see module doc)
@@ -90,7 +90,8 @@ DEFAULT_FIT = ("rig.supply_voltage", "rig.pump_flow", "rig.return_line_K",
                "rig.L1.laminar_small", "rig.L1.laminar_large",
                "rig.L3.laminar_small", "rig.L3.laminar_large")
 
-#: The report's hand-tuned values (table 4.14) and its load constants (table 4.8), SI.
+#: The report's values, SI: its hand-tuned parameters (table 4.14) and its load constants
+#: (table 4.8); :data:`REPORT_SOURCES` names the table of each.
 TABLE_4_14 = {
     "rig.supply_voltage": 11.5,
     "rig.pump_flow": lpm(16.3),
@@ -103,6 +104,23 @@ TABLE_4_14 = {
     "rig.L3.laminar_large": lpm_per_bar(0.4533),
     "rig.L2.laminar_open": lpm_per_bar(1.6111),
 }
+
+#: The report table each value of :data:`TABLE_4_14` comes from.
+REPORT_SOURCES = {name: ("table 4.8" if name.startswith(("rig.L1.", "rig.L2.", "rig.L3."))
+                         else "table 4.14") for name in TABLE_4_14}
+
+
+def report_table(result) -> str:
+    """``result.table`` beside the report's values, each row naming its report table."""
+    lines = result.table(TABLE_4_14, "report").splitlines()
+    width = len(lines[0])
+    out = [lines[0] + "  source", "-" * (width + 12)]
+    for line in lines[2:]:
+        name = line.split(" ", 1)[0]
+        if name in REPORT_SOURCES or name in FIT_PARAMETERS:
+            line = f"{line:{width}s}  {REPORT_SOURCES.get(name, '-')}"
+        out.append(line)
+    return "\n".join(out)
 
 
 def fit_parameter(path: str, start: PVG32Params) -> FitParameter:

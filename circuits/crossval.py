@@ -4,13 +4,30 @@ Roles
     Every compared value (scenario x quantity) has a role:
 
     ``fit``       the value was used to identify a parameter of the model being judged;
-    ``held-out``  predicted by parameters identified without that scenario;
-    ``trivial``   a value any model passes: the flows of the neutral sweep points (0 L/min),
-                  the saturated sweep point's flow (the pump's), Q_branch with L2 closed (0).
+    ``repeat``    a repeat of a fit: the value's model configuration (input voltage, L1 and L3
+                  settings, final L2 state; the sweep's own L3 law) is that of a fitted value of
+                  the same quantity, so the model's steady value is the fitted number itself
+                  (the closing tests 3, 6, 9, 12 end in the configuration of the closed-L2
+                  tests 1, 4, 7, 10). With L2 closed no oil passes L1 and the model's Pm is its
+                  Pb (plus the return hose's drop where one is identified): a closed-L2 Pm whose
+                  Pb is fitted, or a repeat, is a repeat too. Counted with the fit, never as
+                  held-out;
+    ``held-out``  predicted by parameters identified without that model configuration;
+    ``trivial``   a value any model passes: the flows of the neutral sweep points (0 L/min) and
+                  Q_branch with L2 closed (0).
+
+    The saturated sweep point's flow is the pump's: ``fit`` where the pump flow was identified
+    from it (the tuned preset's 16.3 L/min, 4.7.3), else ``held-out`` (a pump flow taken from
+    elsewhere, e.g. the nominal 17 L/min of table 4.9, gives 16.93 L/min there, not 16.30).
 
     :func:`tuned_roles` gives the roles for the report's tuned preset (table 4.14 with the
     reconstructed A_H and the return line), whose provenance is written in
-    :data:`TUNED_PROVENANCE`.
+    :data:`TUNED_PROVENANCE`: 13 of its 17 non-neutral flows are ``fit`` (the 12 A_H anchors
+    and the saturated sweep point), 4 ``held-out`` (the opening tests 2, 5, 8, 11).
+
+    Two more labels appear among the acceptance targets of :mod:`pvgraph.circuits.validation`,
+    not on lab values: ``model check`` (the model compared with itself, e.g. its PVP margin with
+    its own spring law, or its load pressure with its own final value; nothing measured).
 
 Identification (:func:`identify`)
     Everything the model takes from the lab data is re-identified from a training set of
@@ -61,11 +78,14 @@ from .pvg32.parameters import PVG32Params, report_initial, report_tuned, with_va
 from .rig import build_rig, laminar_load, readings
 from .scenarios import Scenario, all_scenarios, get_scenario
 
-__all__ = ["ROLES", "QUANTITIES", "SATURATED", "TUNED_PROVENANCE", "role", "tuned_roles",
-           "Identification", "identify", "steady_values", "GROUPINGS", "CrossValidation",
-           "cross_validate", "judge", "format_cross_validation", "pvp_margin_reachable"]
+__all__ = ["ROLES", "ROLE_CODES", "QUANTITIES", "SATURATED", "TUNED_PROVENANCE", "role",
+           "tuned_roles", "configuration", "Identification", "identify", "steady_values",
+           "GROUPINGS", "CrossValidation", "cross_validate", "judge", "format_cross_validation",
+           "shown_against", "fold_keys", "pvp_margin_reachable", "SETTLED_STEP", "STEADY_AT_END"]
 
-ROLES = ("fit", "held-out", "trivial")
+ROLES = ("fit", "repeat", "held-out", "trivial")
+#: one-letter codes of the roles in the printed tables
+ROLE_CODES = {"fit": "f", "repeat": "r", "held-out": "h", "trivial": "t"}
 QUANTITIES = ("Q_total", "Q_branch", "Pf", "Pm", "Pb")
 #: Pump saturated: 4.7.3, the 16.3 L/min is reached below about 4.19 V (sweep-7, 3.94 V)
 SATURATED = ("sweep-7",)
@@ -95,16 +115,29 @@ def _is_neutral(s: Scenario) -> bool:
     return s.measured.Q_total == 0.0
 
 
+def configuration(s: Scenario) -> tuple:
+    """The model configuration of scenario ``s`` at the end of its run: (voltage sweep or step
+    test, U, L1, L3, final L2 state). Scenarios with one configuration share every steady
+    value of the model."""
+    return (s.kind == "voltage_sweep",) + _config(s)
+
+
 def role(s: Scenario, quantity: str, fitted: set) -> str:
     """The role of ``quantity`` of scenario ``s``, given the ``(scenario, quantity)`` pairs used
-    for identification."""
+    for identification (module doc: roles are per model configuration)."""
     if quantity in ("Q_total", "Q_branch") and _is_neutral(s):
-        return "trivial"
-    if quantity == "Q_total" and s.name in SATURATED:
         return "trivial"
     if quantity == "Q_branch" and not s.l2_open_finally:
         return "trivial"
-    return "fit" if (s.name, quantity) in fitted else "held-out"
+    if (s.name, quantity) in fitted:
+        return "fit"
+    cfg = configuration(s)
+    same = {q for n, q in fitted if configuration(get_scenario(n)) == cfg}
+    if quantity in same:
+        return "repeat"
+    if quantity == "Pm" and not s.l2_open_finally and "Pb" in same:
+        return "repeat"
+    return "held-out"
 
 
 def tuned_roles() -> dict[tuple[str, str], str]:
@@ -520,6 +553,11 @@ def _load_key(s: Scenario) -> str:
 GROUPINGS = {"voltage": _voltage_key, "load": _load_key}
 
 
+def fold_keys(groupings=("voltage", "load")) -> list[str]:
+    """The names of the folds of :func:`cross_validate` (``"U = 4.6 V"``, ...)."""
+    return list(dict.fromkeys(GROUPINGS[g](s) for g in groupings for s in all_scenarios()))
+
+
 @dataclass
 class CrossValidation:
     """Held-out predictions of every fold, as records, plus the cost."""
@@ -621,7 +659,7 @@ def judge(records: list[dict], grouping: str | None = None, roles=("held-out",))
         if _is_neutral(s):
             continue
         rq = qs.get("Q_total")
-        if rq and rq["error"] is not None and (rq["role"] in roles or name in SATURATED):
+        if rq and rq["error"] is not None and rq["role"] in roles:
             err = abs(rq["error"])
             flow.append((name, err, err <= to_lpm(FLOW_TOL) + 1e-9))
         ps = [qs[q] for q in ("Pf", "Pm", "Pb") if q in qs]
@@ -641,17 +679,33 @@ def _count(rows):
     return sum(ok for *_, ok in rows), len(rows), rows
 
 
-#: Share of held-out points a target asks for: flow within 1 L/min at 15 of the 17 non-neutral
+#: The settling checks of :func:`pvgraph.circuits.validation.targets` (model checks):
+SETTLED_STEP = "settled within 0.5 s of the solenoid step (step tests)"
+STEADY_AT_END = "steady at the end of the 8 s run from rest (no step: Pf flat over the last 1 s)"
+
+#: Share of the points a target asks to pass: flow within 1 L/min at 15 of the 17 non-neutral
 #: points, Pf, Pm and Pb within 2 bar at 10 of the 12 step tests and at every non-neutral sweep
-#: point, settled within 0.5 s in 18 of the 19 scenarios. Labels not listed ask for all.
+#: point, settled within 0.5 s of the step in 7 of the 8 step tests (one miss allowed). Labels
+#: not listed ask for all.
 HELD_OUT_TARGETS = {"flow within 1 L/min (non-neutral points)": 15 / 17,
                     "Pf, Pm, Pb within 2 bar (step tests)": 10 / 12,
-                    "settled within 0.5 s": 18 / 19}
+                    SETTLED_STEP: 7 / 8}
 
 
 def held_out_target(label: str, total: int) -> int:
     """How many of ``total`` held-out points the target for ``label`` asks to pass."""
     return math.ceil(HELD_OUT_TARGETS.get(label, 1.0) * total - 1e-9)
+
+
+def shown_against(value: float, tol: float) -> str:
+    """``value`` with 2 decimals, or as many more as it takes for the printed number to fall on
+    the same side of the tolerance ``tol`` as the value (1.0019 against 1.0 prints 1.002, not
+    1.00)."""
+    for digits in range(2, 10):
+        text = f"{value:.{digits}f}"
+        if (float(text) > tol) == (value > tol):
+            return text
+    return repr(value)
 
 
 def format_cross_validation(cv: CrossValidation) -> str:
@@ -660,7 +714,7 @@ def format_cross_validation(cv: CrossValidation) -> str:
     for g in dict.fromkeys(r["grouping"] for r in cv.records):
         recs = [r for r in cv.records if r["grouping"] == g]
         lines.append(f"leave one {g} group out: predicted - measured (role: h held-out, "
-                     f"f fit, t trivial)")
+                     f"f fit, r repeat of a fit, t trivial)")
         head = (f"{'scenario':9s} {'fold':30s} | {'Q_total':>9s} {'Q_branch':>9s} | "
                 f"{'Pf':>8s} {'Pm':>8s} {'Pb':>8s}")
         lines += [head, "-" * len(head)]
@@ -671,8 +725,11 @@ def format_cross_validation(cv: CrossValidation) -> str:
             cells = []
             for q in QUANTITIES:
                 r = qs[q]
-                code = {"fit": "f", "held-out": "h", "trivial": "t"}[r["role"]]
-                cells.append("  failed " if r["error"] is None else f"{r['error']:+7.2f}{code}")
+                code = ROLE_CODES[r["role"]]
+                tol = to_lpm(FLOW_TOL) if q.startswith("Q") else to_bar(PRESSURE_TOL)
+                cells.append("  failed " if r["error"] is None else
+                             f"{'-' if r['error'] < 0 else '+'}"
+                             f"{shown_against(abs(r['error']), tol)}{code}")
             fold = qs["Q_total"]["fold"]
             lines.append(f"{name:9s} {fold[:30]:30s} | {cells[0]:>9s} {cells[1]:>9s} | "
                          f"{cells[2]:>8s} {cells[3]:>8s} {cells[4]:>8s}")
@@ -682,11 +739,13 @@ def format_cross_validation(cv: CrossValidation) -> str:
                        if g == "load" else "no such point in the folds run")
                 lines.append(f"  n/a   held-out {label}: none held out ({why})")
                 continue
-            worst = max(e for _, e, _ in rows)
+            name, worst, _ = max(rows, key=lambda row: row[1])
+            tol = to_lpm(FLOW_TOL) if label.startswith("flow") else to_bar(PRESSURE_TOL)
             need = held_out_target(label, total)
             verdict = "PASS" if ok >= need else "miss"
             aim = "" if need == total else f"; target >= {need} of {total}, aim {total}"
-            lines.append(f"  {verdict}  held-out {label}: {ok}/{total} (worst {worst:.2f}{aim})")
+            lines.append(f"  {verdict}  held-out {label}: {ok}/{total} (worst "
+                         f"{shown_against(worst, tol)} at {name}{aim})")
         lines.append("")
     lines.append(f"{len(cv.folds)} folds, {cv.wall_time:.1f} s wall on {cv.workers} "
                  f"process(es) (steady states)")

@@ -1,5 +1,6 @@
-"""Linearise the PVG 32 rig at the test-9 operating point (U_input = 4.29 V) and check the
-linear step response against the nonlinear model.
+"""Linearise the PVG 32 rig at the test-9 operating point (U_input = 4.29 V on test 9's load:
+large L1 and L3, L2 closed, as ``pvgraph linearize --scenario test-9``) and check the linear
+step response against the nonlinear model.
 
 Inputs: the PVE input voltage ``U``. Outputs: the main spool position
 ``pvg.pvb.main_spool.flange.x`` and the load (LS) pressure ``load.f.port.p``.
@@ -15,11 +16,13 @@ import sys
 import numpy as np
 
 from pvgraph.circuits.pvg32.parameters import report_tuned
-from pvgraph.circuits.rig import build_rig
+from pvgraph.circuits.rig import build_rig, laminar_load
+from pvgraph.circuits.scenarios import get_scenario
 from pvgraph.analysis import linearize_circuit, steady_state
 from pvgraph.simulate import simulate
 
-U0 = 4.29        # [V] test-9 operating point
+SCENARIO = get_scenario("test-9")
+U0 = SCENARIO.U_input   # [V] test-9 operating point (4.29 V)
 DU = 0.01        # [V] small input step for the comparison
 T_END = 0.3      # [s] duration of the step comparison
 OUTPUTS = ["pvg.pvb.main_spool.flange.x", "load.f.port.p"]
@@ -29,12 +32,17 @@ X = OUTPUTS[0]
 OUTPUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "output")
 
 
+def build(u: dict, p=None):
+    """The rig on test 9's load at the input voltage ``u["U"]`` (a fresh load each time: a
+    circuit instance joins one rig only)."""
+    p = p or report_tuned()
+    load = laminar_load(p, L1=SCENARIO.orifice_L1 or "small", L3=SCENARIO.orifice_L3,
+                        l2_open=SCENARIO.l2_open_finally)
+    return build_rig(p, load=load, U_input=u["U"])
+
+
 def main(path: str = os.path.join(OUTPUT, "linearize_pvg32.png"), *,
          verbose: bool = True) -> dict:
-    p = report_tuned()
-
-    def build(u):
-        return build_rig(p, U_input=u["U"])
 
     system = build({"U": U0}).compile()
     op = steady_state(system)
@@ -47,7 +55,8 @@ def main(path: str = os.path.join(OUTPUT, "linearize_pvg32.png"), *,
     sol = simulate(stepped, T_END, rtol=1e-7, t_eval=t, y0=op.y)
     dx_nl = sol[X] - op[X]
     if verbose:
-        print(f"operating point U = {U0} V: x_main = {op[X] * 1e3:.4f} mm, "
+        print(f"operating point U = {U0} V ({SCENARIO.name}'s load): "
+              f"x_main = {op[X] * 1e3:.4f} mm, "
               f"p_load = {op[OUTPUTS[1]] / 1e5:.2f} bar ({op.method}, {op.iterations} it.)")
         print(f"{len(lm.state_names)} states; dominant poles [1/s]:")
         for s in poles[:6]:

@@ -97,3 +97,30 @@ def test_lab_calibration_agrees_with_table_4_14():
     results = V.validate(fitted, workers=2)
     ok, total, _ = V.targets(results)["flow within 1 L/min (non-neutral points)"]
     assert ok == total == 17
+
+
+def test_report_table_names_the_report_table_of_each_row():
+    """The pump flow and the supply voltage are table 4.14's; the load constants table 4.8's
+    (report, 'Flow constants of the load orifices')."""
+    from pvgraph.circuits.calibration import FIT_PARAMETERS, REPORT_SOURCES, report_table
+    names = ["rig.pump_flow", "rig.supply_voltage", "rig.L1.laminar_small",
+             "rig.L3.laminar_large"]
+    params = [fit_parameter(n, report_tuned()) for n in names]
+    truth = np.array([TABLE_4_14[n] for n in names])
+    x = np.linspace(1.0, 2.0, 8)
+
+    def predict(theta):                       # linear in every parameter: an exact fit
+        return sum(np.cos(k * x) * theta[n] / truth[k] for k, n in enumerate(names))
+    result = calibrate(predict, predict(dict(zip(names, truth))), params)
+    lines = report_table(result).splitlines()
+    assert lines[0].split()[-2:] == ["report", "source"]
+    rows = {ln.split()[0]: ln for ln in lines[2:] if ln.split()[0] in FIT_PARAMETERS}
+    assert set(rows) == set(names)
+    assert rows["rig.pump_flow"].endswith("table 4.14")
+    assert rows["rig.supply_voltage"].endswith("table 4.14")
+    assert rows["rig.L1.laminar_small"].endswith("table 4.8")
+    assert rows["rig.L3.laminar_large"].endswith("table 4.8")
+    # the report values beside the estimates: 16.3 L/min, 11.5 V, 0.2105 and 0.4533 L/(min bar)
+    assert " 16.3 " in rows["rig.pump_flow"] and " 0.4533 " in rows["rig.L3.laminar_large"]
+    assert REPORT_SOURCES["rig.L2.laminar_open"] == "table 4.8"
+    assert REPORT_SOURCES["compensator.coulomb_friction"] == "table 4.14"
