@@ -223,8 +223,9 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
             equations = _eliminate_aliases(equations, infos, subs, trace.values, found,
                                            incidence, prov, why)
         except StructureError as exc:
-            if unbalanced:
-                raise StructureError(f"{exc}\n{_unbalanced_text(unbalanced)}") from None
+            if unbalanced:    # the cause: it leads
+                raise StructureError(f"{_unbalanced_text(unbalanced)}\nWhat the structural "
+                                     f"check then finds: {exc}") from None
             raise
     del found
 
@@ -240,8 +241,9 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
                               tables=trace.tables, array_rows=array_rows, provenance=prov)
     except StructureError as exc:
         told = _fixed_elsewhere(exc, equations, infos, subs, why)
-        if unbalanced:
-            told = (told + "\n" if told else "") + _unbalanced_text(unbalanced)
+        if unbalanced:    # the cause: it leads
+            raise StructureError(f"{_unbalanced_text(unbalanced)}\nWhat the structural check "
+                                 f"then finds: {exc}" + (f"\n{told}" if told else "")) from None
         if told:
             raise StructureError(f"{exc}\n{told}") from None
         raise

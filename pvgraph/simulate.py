@@ -203,9 +203,19 @@ def _seconds(value, what: str) -> float:
                            f"quantity such as '2 s')") from None
 
 
-def _tolerance(value, what: str) -> float:
+def _tolerance(value, what: str, per_variable: bool = False):
     """A relative tolerance (``rtol``, and ``atol`` in nominal units) as a float between 0 and
-    1, or a :class:`PvgraphError` naming it."""
+    1 (``per_variable``: or an array of them, one per unknown), or a :class:`PvgraphError`
+    naming it."""
+    if per_variable and isinstance(value, (list, tuple, np.ndarray)):
+        try:
+            values = np.asarray(value, dtype=float).ravel()
+        except (TypeError, ValueError):
+            values = np.array([np.nan])
+        if not values.size or not np.all((values > 0.0) & (values < 1.0)):
+            raise PvgraphError(f"simulate: {what}: one number per unknown, each between 0 and "
+                               f"1 (in units of its nominal size), got {value!r}")
+        return values
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise PvgraphError(f"simulate: {what} = {value!r}: give a number between 0 and 1 "
                            f"(e.g. {what}=1e-6), not a {type(value).__name__}")
@@ -242,8 +252,9 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         End time [s] (``t_start`` and ``max_step`` alike; ``"500 ms"`` is read too).
     rtol : float
         Relative tolerance.
-    atol : float, optional
-        Absolute tolerance in units of each variable's nominal magnitude (default ``rtol``), so
+    atol : float or array, optional
+        Absolute tolerance in units of each variable's nominal magnitude (default ``rtol``; an
+        array gives one per unknown, in the order of ``system.names``), so
         a pressure (nominal 10 bar) gets ``atol * 1e6`` Pa and a spool position (nominal 1 mm)
         ``atol * 1e-3`` m.
     solver : {"pvgraph", "ida"}
@@ -288,7 +299,7 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     _check_options(options, solver)
     rtol = _tolerance(rtol, "rtol")
     if atol is not None:
-        atol = _tolerance(atol, "atol")
+        atol = _tolerance(atol, "atol", per_variable=True)
     recompile = options.pop("recompile", True)
     system = target.compile() if isinstance(target, Circuit) else target
     if params is not None:
@@ -313,6 +324,9 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         # parameters, the start values they changed are imposed with these (these win)
         pending = system.__dict__.pop("_pending_starts", None) or {}
         reduction.impose(system, {**pending, **given}, y_init, yp_init, t_start)
+    if atol is not None and np.ndim(atol) and len(atol) != system.n:
+        raise PvgraphError(f"simulate: atol has {len(atol)} values; {system.name} has "
+                           f"{system.n} unknowns (system.names), one value each")
     atol_vec = (rtol if atol is None else atol) * system.nominal
     system.reset_modes()
     system.apply_start_events(t_start, y_init, yp_init)

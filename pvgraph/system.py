@@ -34,7 +34,8 @@ from scipy.sparse import csc_matrix, csr_matrix
 
 from . import codegen
 from . import expr as E
-from .errors import CircuitError, InitializationError, ParameterError
+from .errors import (CircuitError, InitializationError, ParameterError, StartValueWarning,
+                     outside_stacklevel)
 
 __all__ = ["System", "build_system", "ModeView", "RecompileWarning"]
 
@@ -670,12 +671,23 @@ class System:
             try:
                 reduction.restart(new, started)
             except InitializationError:
-                if not _starts_follow:
-                    raise
-                # simulate(start=...) follows and wins over the starts the components gave:
-                # those it changed are imposed with its values there
+                if started and not _starts_follow:
+                    raise    # start values given with these parameters contradict
+                # the starts given when building no longer fit the joint's new ratio (a sweep
+                # over a lever ratio with both ends placed): the states keep theirs and the
+                # others follow; simulate(start=...), if it follows, wins, imposed there with
+                # the starts this change gave
                 new.y0, new.yp0 = self.y0.copy(), self.yp0.copy()
                 new._pending_starts = started
+                if not _starts_follow:
+                    states = ", ".join(n for n, _ in reduction.states[:4])
+                    warnings.warn(StartValueWarning(
+                        f"{self.name}: with the new value of {', '.join(sorted(changed))} the "
+                        f"start values given when building no longer fit the constraints "
+                        f"(rigid joints); the states ({states}) keep their start values and the "
+                        f"variables tied to them follow. Give consistent values with "
+                        f"simulate(start=...) where that is not meant."),
+                        stacklevel=outside_stacklevel())
         return new
 
     def _update_derived(self):

@@ -830,3 +830,18 @@ def test_the_pressure_limit_is_raised_where_such_a_pressure_is_meant(monkeypatch
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         simulate(c, 0.06)
+
+
+def test_absolute_tolerances_per_unknown_are_taken_and_checked():
+    """atol as one number per unknown (in nominal units, as IDA's vector atol); a vector of
+    the wrong length or with a value outside (0, 1) is named."""
+    c = demo()
+    system = c.compile()
+    tight = simulate(system, 0.2, rtol=1e-8, atol=[1e-10] * system.n)
+    loose = simulate(system, 0.2, rtol=1e-8)
+    assert abs(tight.final("node.port.p") - loose.final("node.port.p")) < 1e-6 * \
+        abs(loose.final("node.port.p"))
+    with pytest.raises(PvgraphError, match=rf"atol has 1 values; demo has {system.n} unknowns"):
+        simulate(system, 0.1, atol=[1e-6])
+    with pytest.raises(PvgraphError, match="one number per unknown, each between 0 and 1"):
+        simulate(system, 0.1, atol=[1e-6, 2.0][:system.n] + [1e-6] * (system.n - 2))

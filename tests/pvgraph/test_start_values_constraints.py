@@ -167,12 +167,18 @@ def test_two_given_node_starts_that_differ_are_reported():
 def test_start_values_with_a_runtime_ratio_win_over_the_build_time_ones():
     """Lever built with x_A0 = 0.1, x_B0 = 0.2 (i = 2); run with i = 3 and start x_A = 0.1:
     the given start holds and the other end follows, x_B = 0.3 (the build-time 0.2 no longer
-    fits the ratio). Without a start, the same change is refused naming both build values."""
+    fits the ratio). Without a start (a sweep over the ratio), the run goes on from the
+    states' start values, the other end following, and says so."""
     system = lever(xA=0.1, xB=0.2).compile()
     sol = simulate(system, 0.01, params={"lev.i": 3.0}, start={"A.flange.x": 0.1})
     assert sol["A.flange.x"][0] == pytest.approx(0.1, abs=1e-12)
     assert sol["B.flange.x"][0] == pytest.approx(0.3, abs=1e-12)
     sol = simulate(system, 0.01, params={"lev.i": 3.0}, start={"B.flange.x": 0.45})
     assert sol["A.flange.x"][0] == pytest.approx(0.15, abs=1e-12)
-    with pytest.raises(InitializationError, match=r"given, the constraints force"):
-        simulate(system, 0.01, params={"lev.i": 3.0})
+    from pvgraph.errors import StartValueWarning
+    with pytest.warns(StartValueWarning, match=r"new value of lev.i the start values given "
+                                               r"when building no longer fit"):
+        sol = simulate(system, 0.01, params={"lev.i": 3.0})
+    xa, xb = sol["A.flange.x"][0], sol["B.flange.x"][0]
+    assert xb == pytest.approx(3.0 * xa, abs=1e-12)
+    assert xa == pytest.approx(0.1, abs=1e-12) or xb == pytest.approx(0.2, abs=1e-12)
