@@ -97,6 +97,7 @@ START_RTOL = 1e-6            # relative mismatch between a given start and a con
 IC_MAX_ITERS = 30            # Newton iterations of the start-value check
 STEP_HALVINGS = 30           # halvings of a step moving the states towards given start values
 NUDGE = 1e-2                 # move of the free states (in nominal units) off a singular start
+ANGLE_STEP = 0.5             # [rad] largest move of an angle in one step towards given starts
 IC_TOL = 1e-10               # relative Newton step accepted as converged there
 EVENT_OWNER = "index_reduction"
 NAMES_IN_MESSAGES = 12       # conflicting start values listed in one message
@@ -308,6 +309,7 @@ class IndexReduction:
         idxs = np.array([j for _, _, _, j, _ in loose], dtype=int)
         offs = np.array([o for _, _, _, _, o in loose])
         scale = np.maximum(np.abs(targets), system.nominal[idxs])
+        angles = np.array([system.units[j] == "rad" for j in free], dtype=bool)
         rows = None
         nudged = False
         yc, ypc, ok = _consistent_values(system, t0, y, yp)
@@ -339,6 +341,11 @@ class IndexReduction:
             if not rows or np.all(np.abs(r[rows]) <= START_RTOL * 1e-3):
                 break
             step = np.linalg.lstsq(Gs[rows], -r[rows], rcond=None)[0] * system.nominal[free]
+            # an angle moves at most ANGLE_STEP per step: near a dead centre the first step
+            # would otherwise throw a crank many turns away to an equivalent configuration
+            turn = np.abs(step[angles]).max() if angles.any() else 0.0
+            if turn > ANGLE_STEP:
+                step *= ANGLE_STEP / turn
             # a step the constraints cannot follow (past the reach of a link) or that does not
             # bring the given values closer is halved
             base, size, lam = y[free].copy(), np.linalg.norm(r[rows]), 1.0

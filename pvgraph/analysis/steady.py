@@ -72,6 +72,8 @@ class OperatingPoint:
         state is stable."""
         from .linearize import linearize
         got = self.info.get("poles")
+        if got is None and not self.system.differential.any():
+            got = np.zeros(0, dtype=complex)    # no state, no pole
         if got is None:
             got = linearize(self.system, self, None, [self.system.names[0]]).poles()
             self.info["poles"] = got

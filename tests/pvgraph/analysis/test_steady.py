@@ -193,3 +193,16 @@ def test_an_unstable_steady_state_is_told_with_its_pole(g):
             "constant 0.333 s" in told[0]
     else:
         assert not told
+
+
+def test_a_circuit_without_states_has_no_poles():
+    """A pressure source through an orifice to the tank: every unknown fixed, no pole."""
+    from pvgraph.components import PressureSource
+    c = Circuit("fixed")
+    src = c.add("src", PressureSource(p0=bar(10)))
+    ori = c.add("o", Orifice(A=mm2(1.0)))
+    tank = c.add("tank", Tank())
+    c.connect(src.port, ori.a)
+    c.connect(ori.b, tank.port)
+    op = steady_state(c.compile())
+    assert op.poles().shape == (0,)

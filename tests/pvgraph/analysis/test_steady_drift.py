@@ -243,3 +243,39 @@ def test_a_crank_turns_through_its_dead_centres_and_starts_from_its_slider():
     assert sol.final("i.shaft.phi") > 4 * math.pi          # past several dead centres
     # the constraint holds to the Newton tolerance of the algebraic position
     assert np.max(np.abs(sol["m.flange.x"] - 0.1 * np.sin(sol["i.shaft.phi"]))) < 1e-6
+
+
+class SliderCrankParams(Params):
+    r: float = Field(..., gt=0.0, description="Crank radius [m]")
+    l: float = Field(..., gt=0.0, description="Rod length [m]")
+
+
+class SliderCrank(Component):
+    """x = r cos(phi) + sqrt(l^2 - r^2 sin^2 phi): top dead centre at phi = 0."""
+
+    Params = SliderCrankParams
+    ports = {"shaft": Rotational("crank"), "flange": Mechanical("slider")}
+
+    def equations(self, v, p):
+        s, c = E.sin(v.shaft.phi), E.cos(v.shaft.phi)
+        root = E.sqrt(p.l ** 2 - p.r ** 2 * s * s)
+        return [v.flange.x - (p.r * c + root),
+                v.shaft.tau + (-p.r * s - p.r ** 2 * s * c / root) * v.flange.f]
+
+
+@pytest.mark.parametrize("rod, phi", [(0.22, 0.844641), (0.3, math.pi)])
+def test_a_slider_held_at_its_start_moves_the_crank_to_the_nearest_angle(rod, phi):
+    """Slider built at x0 = 0.25 m = r + l (top dead centre, r = 0.05, l = 0.2), the rod made
+    longer at run time: the slider stays, the crank turns to the nearest angle with
+    r cos(phi) + sqrt(l^2 - r^2 sin^2 phi) = 0.25 (0.8446 rad for l = 0.22, the bottom dead
+    centre pi for l = 0.3), not whole turns beyond."""
+    from pvgraph.simulate import simulate
+    c = Circuit("sc")
+    i = c.add("i", Inertia(J=0.01))
+    sc = c.add("sc", SliderCrank(r=0.05, l=0.2))
+    m = c.add("m", Mass(m=1.0, x0=0.25))
+    c.connect(i.shaft, sc.shaft)
+    c.connect(sc.flange, m.flange)
+    sol = simulate(c.compile(), 1e-4, params={"sc.l": rod})
+    assert sol["m.flange.x"][0] == pytest.approx(0.25, abs=1e-9)
+    assert sol["i.shaft.phi"][0] == pytest.approx(phi, abs=1e-3)
