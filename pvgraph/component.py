@@ -218,11 +218,12 @@ def _is_plain_number(text: str) -> bool:
     return True
 
 
-def check_table(x, y, xname: str, yname: str, *, y_range=None) -> None:
+def check_table(x, y, xname: str, yname: str, *, y_range=None, x_range=None) -> None:
     """Check a lookup table's points for a parameter validator: ``x`` and ``y`` of one length
-    of at least 2, ``x`` strictly increasing, every value finite (and ``y`` within ``y_range``,
-    a ``(low, high)`` pair, if given). Raises ``ValueError`` naming the field, which pydantic
-    reports with the component (``invalid parameters for Pump: ...``)."""
+    of at least 2, ``x`` strictly increasing, every value finite (and ``y``, ``x`` within
+    ``y_range``, ``x_range``, ``(low, high)`` pairs, if given). Raises ``ValueError`` naming
+    the field, which pydantic reports with the component (``invalid parameters for Pump:
+    ...``)."""
     if len(x) != len(y) or len(x) < 2:
         raise ValueError(f"{xname} ({len(x)} points) and {yname} ({len(y)} points) must have "
                          f"the same length >= 2")
@@ -235,11 +236,13 @@ def check_table(x, y, xname: str, yname: str, *, y_range=None) -> None:
         k = steps.index(min(steps))
         raise ValueError(f"{xname} must be strictly increasing: {x[k]!r} is followed by "
                          f"{x[k + 1]!r} (point {k + 2})")
-    if y_range is not None:
-        low, high = y_range
-        out = [v for v in y if not low <= v <= high]
+    for name, values, bounds in ((xname, x, x_range), (yname, y, y_range)):
+        if bounds is None:
+            continue
+        low, high = bounds
+        out = [v for v in values if not low <= v <= high]
         if out:
-            raise ValueError(f"{yname} holds {out[0]!r}: its values must lie in "
+            raise ValueError(f"{name} holds {out[0]!r}: its values must lie in "
                              f"[{low:g}, {high:g}]")
 
 

@@ -90,14 +90,15 @@ PIVOT_RATIO = 0.1            # a pivot block's |det| below this fraction of its 
 PIVOT_RANK_TOL = 1e-9        # relative size of the last pivot of a numerically full-rank block
 MONITOR_MAX_BLOCK = 3        # larger non-constant pivot blocks are not watched (cost of det)
 START_PREFERENCE = {0: 1.0, 1: 0.7, 2: 0.4}   # column weights: given starts stay states
-ANGLE_PREFERENCE = 1e-3      # column weight of an angle or angular speed: they stay states
+ANGLE_PREFERENCE = 1e-6      # column weight of an angle or angular speed: they stay states
 ORDER_PREFERENCE = 1e4       # column weight per derivative order above one: dummy those first,
                              # rather than make a velocity a second state beside the mass's own
 START_RTOL = 1e-6            # relative mismatch between a given start and a consistent value
 IC_MAX_ITERS = 30            # Newton iterations of the start-value check
 STEP_HALVINGS = 30           # halvings of a step moving the states towards given start values
 NUDGE = 1e-2                 # move of the free states (in nominal units) off a singular start
-ANGLE_STEP = 0.5             # [rad] largest move of an angle in one step towards given starts
+ANGLE_STEP = 0.5             # [rad] first limit of an angle's move in one step towards given
+                             # starts (doubled after each whole step taken)
 IC_TOL = 1e-10               # relative Newton step accepted as converged there
 EVENT_OWNER = "index_reduction"
 NAMES_IN_MESSAGES = 12       # conflicting start values listed in one message
@@ -310,6 +311,7 @@ class IndexReduction:
         offs = np.array([o for _, _, _, _, o in loose])
         scale = np.maximum(np.abs(targets), system.nominal[idxs])
         angles = np.array([system.units[j] == "rad" for j in free], dtype=bool)
+        reach = ANGLE_STEP
         rows = None
         nudged = False
         yc, ypc, ok = _consistent_values(system, t0, y, yp)
@@ -341,11 +343,13 @@ class IndexReduction:
             if not rows or np.all(np.abs(r[rows]) <= START_RTOL * 1e-3):
                 break
             step = np.linalg.lstsq(Gs[rows], -r[rows], rcond=None)[0] * system.nominal[free]
-            # an angle moves at most ANGLE_STEP per step: near a dead centre the first step
-            # would otherwise throw a crank many turns away to an equivalent configuration
+            # an angle moves by at most ``reach`` per step, doubled after each such step taken
+            # whole: near a dead centre the first step would otherwise throw a crank turns away
+            # to an equivalent configuration, while a drum wound on reaches its 500 rad
             turn = np.abs(step[angles]).max() if angles.any() else 0.0
-            if turn > ANGLE_STEP:
-                step *= ANGLE_STEP / turn
+            limited = turn > reach
+            if limited:
+                step *= reach / turn
             # a step the constraints cannot follow (past the reach of a link) or that does not
             # bring the given values closer is halved
             base, size, lam = y[free].copy(), np.linalg.norm(r[rows]), 1.0
@@ -355,6 +359,8 @@ class IndexReduction:
                 if ok and np.linalg.norm(((coefs * yc2[idxs] + offs - targets)
                                           / scale)[rows]) < size:
                     yc, ypc = yc2, ypc2
+                    if limited and lam == 1.0:
+                        reach *= 2.0
                     break
                 lam *= 0.5
             else:

@@ -695,6 +695,8 @@ def test_a_bad_spool_edge_table_or_one_without_its_switch_is_refused():
                                              r"increasing: 0.5 is followed by 0.2"):
         DirectionalValve43(A_max=1e-5, edge="table", s_table=(0.0, 0.5, 0.2),
                            A_table=(0.0, 0.1, 0.2))
+    with pytest.raises(ParameterError, match=r"s_table holds 2.0: its values must lie in \[0, 1\]"):
+        DirectionalValve43(A_max=1e-5, edge="table", s_table=(2.0, 3.0), A_table=(0.0, 1.0))
     with pytest.raises(ParameterError, match=r"used with edge='table' only \(edge is 'linear'\)"):
         DirectionalValve43(A_max=1e-5, s_table=(0.0, 1.0), A_table=(0.0, 1.0))
     ok = DirectionalValve43(A_max=1e-5, edge="table", s_table=(0.0, 1.0), A_table=(0.0, 1.0))

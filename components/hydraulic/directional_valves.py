@@ -94,7 +94,8 @@ class SpoolEdgeParams(EdgeFlowParams):
                        description="Overlap of the closed edges, fraction of the stroke [-]")
     edge: Literal["linear", "table"] = Field("linear", description="Opening law of the edges [-]")
     s_table: tuple[float, ...] | None = Field(
-        None, description="Opening past the lap, fraction of the stroke [-] (edge='table')")
+        None, description="Opening past the lap, fraction of the stroke [-] (edge='table'; in "
+                          "[0, 1], reaching 1 - lap at full stroke)")
     A_table: tuple[float, ...] | None = Field(
         None, description="Areas at s_table, fractions of A_max [-] (edge='table')")
 
@@ -104,7 +105,7 @@ class SpoolEdgeParams(EdgeFlowParams):
             if self.s_table is None or self.A_table is None:
                 raise ValueError("edge='table' needs s_table and A_table")
             check_table(self.s_table, self.A_table, "s_table", "A_table (fractions of A_max)",
-                        y_range=(0.0, 1.0))
+                        y_range=(0.0, 1.0), x_range=(0.0, 1.0))
         elif self.s_table is not None or self.A_table is not None:
             raise ValueError(f"s_table and A_table are used with edge='table' only (edge is "
                              f"{self.edge!r}): give edge='table' as well, or leave them out")

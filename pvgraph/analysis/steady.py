@@ -634,8 +634,9 @@ def steady_state(system: System, *, y0=None, t: float = 0.0, tol: float = 1e-9,
 
 
 #: steady states of systems up to this many unknowns are checked for stability (a dense
-#: linearisation: about 1 ms at 100 unknowns, 50 ms at 500)
-STABILITY_MAX_N = 500
+#: linearisation: about 1 ms at 100 unknowns, 0.12 s at 600, some seconds at 2000); bigger
+#: ones are checked on request, ``op.poles()``
+STABILITY_MAX_N = 1000
 
 
 def _check_stability(op) -> None:

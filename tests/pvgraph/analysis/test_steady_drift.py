@@ -279,3 +279,38 @@ def test_a_slider_held_at_its_start_moves_the_crank_to_the_nearest_angle(rod, ph
     sol = simulate(c.compile(), 1e-4, params={"sc.l": rod})
     assert sol["m.flange.x"][0] == pytest.approx(0.25, abs=1e-9)
     assert sol["i.shaft.phi"][0] == pytest.approx(phi, abs=1e-3)
+
+
+class DrumParams(Params):
+    r: float = Field(..., gt=0.0, description="Radius [m]")
+    e: float = Field(0.0, ge=0.0, description="Eccentricity [m]")
+
+
+class Drum(Component):
+    """A cable drum with a slight eccentricity: x = r phi + e sin(phi)."""
+
+    Params = DrumParams
+    ports = {"shaft": Rotational("drum"), "flange": Mechanical("cable end")}
+
+    def equations(self, v, p):
+        return [v.flange.x - (p.r * v.shaft.phi + p.e * E.sin(v.shaft.phi)),
+                v.shaft.tau + (p.r + p.e * E.cos(v.shaft.phi)) * v.flange.f]
+
+
+@pytest.mark.parametrize("x", [1.0, 5.0])
+def test_a_cable_start_far_out_winds_the_drum_on(x):
+    """x = 0.01 phi + 0.001 sin(phi) started at x = 1 m or 5 m: the drum turns to the root
+    (about 100 and 500 rad), the steps towards it growing as they are taken whole."""
+    from scipy.optimize import brentq
+
+    from pvgraph.simulate import simulate
+    c = Circuit("drum")
+    j = c.add("J", Inertia(J=0.01))
+    d = c.add("d", Drum(r=0.01, e=0.001))
+    m = c.add("m", Mass(m=2.0))
+    c.connect(j.shaft, d.shaft)
+    c.connect(d.flange, m.flange)
+    want = brentq(lambda ph: 0.01 * ph + 0.001 * math.sin(ph) - x, 0.0, 1e4)
+    sol = simulate(c.compile(), 1e-6, start={"m.flange.x": x})
+    assert sol["m.flange.x"][0] == pytest.approx(x, abs=1e-9)
+    assert sol["J.shaft.phi"][0] == pytest.approx(want, abs=1e-6)
