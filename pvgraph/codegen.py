@@ -240,6 +240,10 @@ def _compiled_leaf(node):
     return (node.op, node.value) if node.op in SLOT_LEAVES else None
 
 
+#: rows whose left-most chain of sums is longer than this are not templated (see row_shape)
+MAX_SHAPE_CHAIN = 64
+
+
 def row_shape(root: Expr, leaf_of=None):
     """``(shape, leaves)`` of a residual row, or None for a row that is not templated.
 
@@ -252,6 +256,13 @@ def row_shape(root: Expr, leaf_of=None):
     per instance) return None.
     """
     leaf_of = leaf_of or _compiled_leaf
+    # a long sum (a node's flow balance of many ports) is a shape of its own: not walked
+    node, depth = root, 0
+    while node.op in ("add", "sub"):
+        depth += 1
+        if depth > MAX_SHAPE_CHAIN:
+            return None
+        node = node.args[0]
     # the shape is a flat token sequence: an operation followed by its children's positions,
     # "const" and its value, a leaf kind and its slot (prefix-free, since arities are fixed).
     # Nodes are numbered in the order of :func:`~pvgraph.expr.postorder` (depth first,

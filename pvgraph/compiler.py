@@ -41,6 +41,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import maximum_bipartite_matching
 
+from . import codegen
 from . import expr as E
 from ._roles import template_roles
 from ._templates import Templates, read_sets
@@ -1410,7 +1411,41 @@ def _apply(e, subs, resolve):
             return _kexpr(coef) * E.Expr("der", (), target)
         return None
 
+    if e.op in _SUMS:
+        return _apply_chain(e, leaf)
     return E.substitute([e], leaf)[0]
+
+
+_SUMS = ("add", "sub")
+
+
+def _apply_chain(e, leaf):
+    """:func:`pvgraph.expr.substitute` of ``e`` with ``leaf``, walking a long sum's chain of
+    left operands (a node's flow balance of many ports) directly: each term substituted on its
+    own, the chain rebuilt from the bottom with the same folding operations."""
+    spine = []
+    node = e
+    while node.op in _SUMS:
+        spine.append(node)
+        node = node.args[0]
+    if len(spine) <= codegen.MAX_SHAPE_CHAIN:
+        return E.substitute([e], leaf)[0]
+    acc = E.substitute([node], leaf)[0]
+    old = node
+    for link in reversed(spine):
+        rhs = link.args[1]
+        if rhs.args:
+            new_rhs = E.substitute([rhs], leaf)[0]
+        else:
+            new_rhs = leaf(rhs)
+            if new_rhs is None:
+                new_rhs = rhs
+        if acc is old and new_rhs is rhs:
+            acc = link
+        else:
+            acc = E.rebuild(link, (acc, new_rhs))
+        old = link
+    return acc
 
 
 # 5. structural checks ------------------------------------------------------------------------
