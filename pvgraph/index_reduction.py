@@ -97,6 +97,8 @@ START_RTOL = 1e-6            # relative mismatch between a given start and a con
 IC_MAX_ITERS = 30            # Newton iterations of the start-value check
 STEP_HALVINGS = 30           # halvings of a step moving the states towards given start values
 NUDGE = 1e-2                 # move of the free states (in nominal units) off a singular start
+SINGULAR_END = 1e-7         # smallest singular value of the given values' sensitivity where
+                             # they are met, relative to the largest (below: a singular meeting)
 ANGLE_STEP = 0.5             # [rad] first limit of an angle's move in one step towards given
                              # starts (doubled after each whole step taken)
 IC_TOL = 1e-10               # relative Newton step accepted as converged there
@@ -270,7 +272,7 @@ class IndexReduction:
                     forced = coef * y[idx] + off
                     if abs(forced - value) > START_RTOL * max(abs(value), abs(forced),
                                                               system.nominal[idx]):
-                        bad.append((name, value, forced, f"{other} = {v_other:.6g}"))
+                        bad.append((name, value, forced, f"with {other} = {v_other:.6g}"))
                     continue
                 held[idx] = (name, value, coef, off)
                 y[idx] = target
@@ -282,7 +284,7 @@ class IndexReduction:
             bad.extend(self._solve_loose(system, loose, free, y, yp, t0))
         if bad:
             listed = "; ".join(f"{n} = {v:.6g} given, the constraints force {f:.6g}"
-                               + (f" (with {why})" if why else "")
+                               + (f" ({why})" if why else "")
                                for n, v, f, why in bad[:NAMES_IN_MESSAGES])
             states = ", ".join(f"{n} = {y[system.index[n]]:.6g}"
                                for n, _ in self.states if n in system.index)
@@ -312,6 +314,7 @@ class IndexReduction:
         scale = np.maximum(np.abs(targets), system.nominal[idxs])
         angles = np.array([system.units[j] == "rad" for j in free], dtype=bool)
         reach = ANGLE_STEP
+        start_free = y[free].copy()
         rows = None
         nudged = False
         yc, ypc, ok = _consistent_values(system, t0, y, yp)
@@ -331,9 +334,11 @@ class IndexReduction:
                     trial = rows + [k]
                     if np.linalg.matrix_rank(Gs[trial], tol=tol) == len(trial):
                         rows = trial
-                if not rows and not nudged and np.any(np.abs(r) > START_RTOL):
-                    # the start sits where the given variables do not move with the states
-                    # (a crank at its dead centre): step off it and look again
+                dropped = [k for k in range(len(loose)) if k not in rows]
+                if not nudged and np.any(np.abs(r[dropped]) > START_RTOL):
+                    # the start sits where a given variable does not move with the states (a
+                    # crank at its dead centre, a pendulum at the bottom given its height):
+                    # step off it and look again
                     nudged, rows, before = True, None, y[free].copy()
                     y[free] += NUDGE * system.nominal[free]
                     yc, ypc, ok = _consistent_values(system, t0, y, yp)
@@ -377,13 +382,26 @@ class IndexReduction:
                 y[free[unused]] = before[unused]
                 yc, ypc, _ = _consistent_values(system, t0, y, yp)
         rows = rows or []
+        if rows and free.size:
+            # reached only where the given values stop moving with the states (a speed given
+            # at a dead centre, met by a speed growing without bound): a contradiction
+            G = self._sensitivity(system, t0, yc, ypc, free, idxs) * (coefs / scale)[:, None]
+            sv = np.linalg.svd(G[rows] * system.nominal[free][None, :], compute_uv=False)
+            if sv[-1] < SINGULAR_END * sv[0]:
+                y[free] = start_free
+                yc, ypc, _ = _consistent_values(system, t0, y, yp)
+                return [(name, value, coef * yc[idx] + off,
+                         "the given values meet only where the constraints are singular, "
+                         "with a speed growing without bound")
+                        for name, value, coef, idx, off in loose]
         bad = []
         fixing = ", ".join(f"{loose[k][0]} = {loose[k][1]:.6g}" for k in rows)
         for k, (name, value, coef, idx, off) in enumerate(loose):
             forced = coef * yc[idx] + off
             if abs(forced - value) > START_RTOL * max(abs(value), abs(forced),
                                                       system.nominal[idx]):
-                bad.append((name, value, forced, fixing if k not in rows else ""))
+                bad.append((name, value, forced, f"with {fixing}" if k not in rows and fixing
+                            else ""))
         return bad
 
     @staticmethod

@@ -324,6 +324,7 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         # parameters, the start values they changed are imposed with these (these win)
         pending = system.__dict__.pop("_pending_starts", None) or {}
         reduction.impose(system, {**pending, **given}, y_init, yp_init, t_start)
+        _check_build_starts_moved(system, reduction, given, y_init, yp_init, t_start)
     if atol is not None and np.ndim(atol) and len(atol) != system.n:
         raise PvgraphError(f"simulate: atol has {len(atol)} values; {system.name} has "
                            f"{system.n} unknowns (system.names), one value each")
@@ -509,6 +510,36 @@ def _algebraic_start(system, exc, y, t0, calc_initial):
     start = np.array(y, dtype=float)
     start[alg] = op.y[alg]
     return start
+
+
+def _check_build_starts_moved(system, reduction, given, y, yp, t0) -> None:
+    """Warn of start values given when building (``Mass(v0=...)``) on variables the
+    constraints tie together that they move to meet the ones given to simulate (``start=``,
+    which win)."""
+    moved = []
+    involved = reduction._involved_indices(system)
+    if not any(name not in given for name in reduction.given):
+        return
+    from .index_reduction import _consistent_values
+    y, _, ok = _consistent_values(system, t0, y, yp)
+    if not ok:
+        return
+    for name, value in reduction.given.items():
+        if name in given:
+            continue
+        try:
+            coef, idx, off = system.resolve(name)
+        except KeyError:
+            continue
+        if idx is None or idx not in involved:
+            continue
+        got = coef * y[idx] + off
+        if abs(got - value) > 1e-6 * max(abs(value), abs(got), float(system.nominal[idx])):
+            moved.append(f"{name} from {value:.6g} to {got:.6g}")
+    if moved:
+        warnings.warn(StartValueWarning(
+            f"{system.name}: the start values given to simulate move ones given when building, "
+            f"through the constraints: {'; '.join(moved[:6])}."), stacklevel=outside_stacklevel())
 
 
 def _check_starts_kept(sol, given, calc_initial="algebraic") -> None:

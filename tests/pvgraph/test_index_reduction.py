@@ -10,9 +10,10 @@ from pydantic import Field
 from scipy.special import ellipk
 
 from pvgraph.components.hydraulic import FlowSource, Tank, VolumeNode
-from pvgraph.components.mechanical import ForceInput, Mass, PositionInput, SpoolMass
+from pvgraph.components.mechanical import ForceInput, Inertia, Mass, PositionInput, SpoolMass
+from pvgraph.components.mechanical.rotational import Rotational
 from pvgraph.components.signal import Constant, Ramp, Sine, Step, TimeTable
-from pvgraph import (Circuit, Component, Hydraulic, InitializationError, Params,
+from pvgraph import (Circuit, Component, Hydraulic, InitializationError, Mechanical, Params,
                      SolverError, StructureError, Variable, der)
 from pvgraph import expr as E
 from pvgraph.index_reduction import derivative_name, time_derivative
@@ -397,3 +398,65 @@ def test_calc_initial_all_moving_a_given_state_is_told():
     assert abs(sol["p.x"][0]) < 1e-6        # the rest position, as told
     kept = simulate(c, 0.1, start={"p.x": 0.3})
     assert kept["p.x"][0] == pytest.approx(0.3, abs=1e-12)
+
+
+class LinkParams(Params):
+    L: float = Field(1.0, gt=0.0, description="Link length [m]")
+
+
+class Link(Component):
+    """A pendulum written in its angle: bob coordinates x = L sin(phi), y = -L cos(phi)."""
+
+    Params = LinkParams
+    ports = {"shaft": Rotational("pivot"), "x": Mechanical("bob x"), "y": Mechanical("bob y")}
+
+    def equations(self, v, p):
+        phi = v.shaft.phi
+        return [v.x.x - p.L * E.sin(phi), v.y.x + p.L * E.cos(phi),
+                v.shaft.tau + v.x.f * p.L * E.cos(phi) + v.y.f * p.L * E.sin(phi)]
+
+
+def _angle_pendulum(**bx):
+    c = Circuit("pend")
+    link = c.add("link", Link(L=1.0))
+    bob_x = c.add("bx", Mass(m=1.0, **bx))
+    bob_y = c.add("by", Mass(m=1.0, g=-G))
+    hub = c.add("hub", Inertia(J=0.01))
+    c.connect(link.shaft, hub.shaft)
+    c.connect(link.x, bob_x.flange)
+    c.connect(link.y, bob_y.flange)
+    return c
+
+
+def test_a_height_and_a_speed_given_together_at_the_bottom_are_met():
+    """From phi = 0 (where the height does not move with the angle), y = -0.5 and vx = 1 give
+    phi = pi/3 and w = vx / (L cos phi) = 2."""
+    sol = simulate(_angle_pendulum(), 1e-4, start={"by.flange.x": -0.5, "bx.v": 1.0},
+                   t_eval=np.array([0.0, 1e-4]))
+    assert sol["hub.shaft.phi"][0] == pytest.approx(math.pi / 3, abs=1e-8)
+    assert sol["hub.w"][0] == pytest.approx(2.0, abs=1e-8)
+
+
+def test_a_speed_given_where_the_constraints_allow_none_is_refused():
+    """Bob at x = L (horizontal): vx = L cos(phi) w = 0 whatever w; vx = 1 is met only by a
+    speed growing without bound, and is refused instead of starting at thousands of rad/s."""
+    with pytest.raises(InitializationError, match="meet only where the constraints are "
+                                                  "singular"):
+        simulate(_angle_pendulum(), 1e-4, start={"bx.flange.x": 1.0, "bx.v": 1.0})
+
+
+def test_a_build_time_start_moved_by_simulate_start_is_told():
+    """Lever i = 2 with Mass(v0=0.5) on A and start={"B.v": 3}: start= wins, A.v becomes 1.5,
+    and a StartValueWarning names the build-time value it moved."""
+    from pvgraph.components import Lever, LinearSpring
+    from pvgraph.errors import StartValueWarning
+    c = Circuit("lev")
+    a = c.add("A", Mass(m=4.0, v0=0.5))
+    lever = c.add("lev", Lever(i=2.0))
+    b = c.add("B", Mass(m=2.0))
+    spring = c.add("k", LinearSpring(k=1000.0))
+    c.connect(a.flange, lever.a)
+    c.connect(lever.b, b.flange, spring.flange)
+    with pytest.warns(StartValueWarning, match=r"A.v from 0.5 to 1.5"):
+        sol = simulate(c, 1e-3, start={"B.v": 3.0})
+    assert sol["A.v"][0] == pytest.approx(1.5, abs=1e-9)
