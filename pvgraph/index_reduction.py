@@ -97,7 +97,8 @@ START_RTOL = 1e-6            # relative mismatch between a given start and a con
 IC_MAX_ITERS = 30            # Newton iterations of the start-value check
 STEP_HALVINGS = 30           # halvings of a step moving the states towards given start values
 NUDGE = 1e-2                 # move of the free states (in nominal units) off a singular start
-SINGULAR_END = 1e-7         # smallest singular value of the given values' sensitivity where
+_SINGULAR = "met only where the constraints are singular"
+SINGULAR_END = 1e-10        # smallest singular value of the given values' sensitivity where
                              # they are met, relative to the largest (below: a singular meeting)
 ANGLE_STEP = 0.5             # [rad] first limit of an angle's move in one step towards given
                              # starts (doubled after each whole step taken)
@@ -282,6 +283,14 @@ class IndexReduction:
             free = np.array(sorted(j for j in involved if differential[j] and j not in held),
                             dtype=int)
             bad.extend(self._solve_loose(system, loose, free, y, yp, t0))
+        if bad and all(why is _SINGULAR for *_, why in bad):
+            raise InitializationError(
+                f"{system.name}: the start values "
+                f"{', '.join(f'{n} = {v:.6g}' for n, v, *_ in bad[:NAMES_IN_MESSAGES])} can be "
+                f"met together only where the constraints are singular: the speed the states "
+                f"need there grows without bound (a speed given at a dead centre, where the "
+                f"position no longer moves with the angle). Give a speed that configuration "
+                f"allows, or a position off the dead centre.")
         if bad:
             listed = "; ".join(f"{n} = {v:.6g} given, the constraints force {f:.6g}"
                                + (f" ({why})" if why else "")
@@ -390,9 +399,7 @@ class IndexReduction:
             if sv[-1] < SINGULAR_END * sv[0]:
                 y[free] = start_free
                 yc, ypc, _ = _consistent_values(system, t0, y, yp)
-                return [(name, value, coef * yc[idx] + off,
-                         "the given values meet only where the constraints are singular, "
-                         "with a speed growing without bound")
+                return [(name, value, coef * yc[idx] + off, _SINGULAR)
                         for name, value, coef, idx, off in loose]
         bad = []
         fixing = ", ".join(f"{loose[k][0]} = {loose[k][1]:.6g}" for k in rows)

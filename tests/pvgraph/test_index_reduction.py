@@ -440,9 +440,15 @@ def test_a_height_and_a_speed_given_together_at_the_bottom_are_met():
 def test_a_speed_given_where_the_constraints_allow_none_is_refused():
     """Bob at x = L (horizontal): vx = L cos(phi) w = 0 whatever w; vx = 1 is met only by a
     speed growing without bound, and is refused instead of starting at thousands of rad/s."""
-    with pytest.raises(InitializationError, match="meet only where the constraints are "
-                                                  "singular"):
+    with pytest.raises(InitializationError, match="can be met together only where the "
+                                                  "constraints are singular"):
         simulate(_angle_pendulum(), 1e-4, start={"bx.flange.x": 1.0, "bx.v": 1.0})
+    # 1 mrad below horizontal, swinging at 5 rad/s: consistent, and met
+    phi = math.pi / 2 - 1e-3
+    sol = simulate(_angle_pendulum(), 1e-4, t_eval=np.array([0.0, 1e-4]),
+                   start={"bx.flange.x": math.sin(phi), "bx.v": 5.0 * math.cos(phi)})
+    assert sol["hub.shaft.phi"][0] == pytest.approx(phi, abs=1e-8)
+    assert sol["hub.w"][0] == pytest.approx(5.0, rel=1e-6)
 
 
 def test_a_build_time_start_moved_by_simulate_start_is_told():
