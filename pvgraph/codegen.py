@@ -244,6 +244,19 @@ def _compiled_leaf(node):
 MAX_SHAPE_CHAIN = 64
 
 
+def long_sum(root: Expr) -> bool:
+    """True where ``root``'s chain of left operands of sums is longer than
+    :data:`MAX_SHAPE_CHAIN` (a node's flow balance of many ports), found without walking it
+    further."""
+    node, depth = root, 0
+    while node.op == "add" or node.op == "sub":
+        depth += 1
+        if depth > MAX_SHAPE_CHAIN:
+            return True
+        node = node.args[0]
+    return False
+
+
 def row_shape(root: Expr, leaf_of=None):
     """``(shape, leaves)`` of a residual row, or None for a row that is not templated.
 
@@ -256,13 +269,8 @@ def row_shape(root: Expr, leaf_of=None):
     per instance) return None.
     """
     leaf_of = leaf_of or _compiled_leaf
-    # a long sum (a node's flow balance of many ports) is a shape of its own: not walked
-    node, depth = root, 0
-    while node.op in ("add", "sub"):
-        depth += 1
-        if depth > MAX_SHAPE_CHAIN:
-            return None
-        node = node.args[0]
+    if long_sum(root):   # a shape of its own: not walked
+        return None
     # the shape is a flat token sequence: an operation followed by its children's positions,
     # "const" and its value, a leaf kind and its slot (prefix-free, since arities are fixed).
     # Nodes are numbered in the order of :func:`~pvgraph.expr.postorder` (depth first,

@@ -1411,12 +1411,9 @@ def _apply(e, subs, resolve):
             return _kexpr(coef) * E.Expr("der", (), target)
         return None
 
-    if e.op in _SUMS:
+    if codegen.long_sum(e):
         return _apply_chain(e, leaf)
     return E.substitute([e], leaf)[0]
-
-
-_SUMS = ("add", "sub")
 
 
 def _apply_chain(e, leaf):
@@ -1425,11 +1422,9 @@ def _apply_chain(e, leaf):
     own, the chain rebuilt from the bottom with the same folding operations."""
     spine = []
     node = e
-    while node.op in _SUMS:
+    while node.op == "add" or node.op == "sub":
         spine.append(node)
         node = node.args[0]
-    if len(spine) <= codegen.MAX_SHAPE_CHAIN:
-        return E.substitute([e], leaf)[0]
     acc = E.substitute([node], leaf)[0]
     old = node
     for link in reversed(spine):

@@ -678,8 +678,9 @@ class System:
                 # others follow; simulate(start=...), if it follows, wins, imposed there with
                 # the starts this change gave
                 new.y0, new.yp0 = self.y0.copy(), self.yp0.copy()
-                new._pending_starts = started
-                if not _starts_follow:
+                if _starts_follow:
+                    new._pending_starts = started
+                else:
                     states = ", ".join(n for n, _ in reduction.states[:4])
                     warnings.warn(StartValueWarning(
                         f"{self.name}: with the new value of {', '.join(sorted(changed))} the "
