@@ -87,7 +87,7 @@ _CLOSURE = {"hydraulic": "a Plug (no flow) or a Tank",
             "rotational": "a RotationalFixed (no rotation) or a RotationalFree (no torque)"}
 
 def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True,
-                    array_rows: bool | None = None):
+                    array_rows: bool | None = None, choice_point: dict | None = None):
     """Compile ``circuit`` to a :class:`~pvgraph.system.System`.
 
     ``array_rows``: how rows of one shape (the same equation of many instances of a component
@@ -109,7 +109,7 @@ def compile_circuit(circuit: Circuit, *, eliminate_aliases: bool = True,
     enabled = gc.isenabled()
     gc.disable()
     try:
-        return _compile(circuit, eliminate_aliases, array_rows)
+        return _compile(circuit, eliminate_aliases, array_rows, choice_point)
     finally:
         if enabled:
             resume_gc()
@@ -130,7 +130,7 @@ def resume_gc():
     gc.enable()
 
 
-def _compile(circuit, eliminate_aliases, array_rows=None):
+def _compile(circuit, eliminate_aliases, array_rows=None, choice_point=None):
     leaves = _flatten(circuit)
     if not leaves:
         raise CircuitError(f"circuit {circuit.name!r} has no components")
@@ -235,7 +235,8 @@ def _compile(circuit, eliminate_aliases, array_rows=None):
     try:
         equations, events, observed, reduction = reduce_index(equations, infos, subs, events,
                                                               observed, given,
-                                                              incidence, params=values)
+                                                              incidence, params=values,
+                                                              choice_point=choice_point)
         del incidence
         system = build_system(circuit.name, equations, infos, subs, observed, events,
                               mode_names, mode_start, parameters=registry,

@@ -42,10 +42,12 @@ Algorithm
    derivative of the last one (``der`` in the residual), an intermediate ``x^(j)`` gets the
    equation ``der(x^(j-1)) = x^(j)``. New unknowns are named ``der(x)`` and ``der(x, j)``.
 
-Where a chosen pivot block (of at most ``MONITOR_MAX_BLOCK`` rows) is not constant, an event
-watches its determinant: if it falls below ``PIVOT_RATIO`` of its start value the set of states
-would have to change, and the run stops with a :class:`~pvgraph.errors.SolverError` naming the
-dummy derivatives, the states and the time (states are not switched during a run).
+Where a chosen pivot block (of at most ``MONITOR_MAX_BLOCK`` rows) is not constant, two events
+watch its determinant. Below ``SWITCH_RATIO`` of its start value :func:`pvgraph.simulate`
+chooses the states again at that instant and goes on with them where another choice is
+better conditioned there (dynamic state selection, :mod:`pvgraph._state_switch`); below
+``PIVOT_RATIO`` (with no better choice, or with ``switch_states=False``) the run stops with a
+:class:`~pvgraph.errors.SolverError` naming the dummy derivatives, the states and the time.
 
 The start values a user gives (parameters such as ``x0``, ``v0``, ``w0`` that differ from their
 defaults, ``start=`` entries, ``simulate(start=...)``, runtime parameters) must satisfy the
@@ -87,6 +89,9 @@ __all__ = ["time_derivative", "reduce_index", "IndexReduction", "derivative_name
 MAX_DIFFERENTIATIONS = 8     # an equation differentiated more often means a modelling error
 PIVOT_RATIO = 0.1            # a pivot block's |det| below this fraction of its start value
                              # ends a run
+SWITCH_RATIO = 0.3           # ... below this one the states are chosen again (simulate):
+                             # a Cartesian pendulum's phase error after 3 swings from 1.8 rad
+                             # at rtol 1e-6 is 7.8e-3 m switching at 0.1, 3.8e-4 at 0.3
 PIVOT_RANK_TOL = 1e-9        # relative size of the last pivot of a numerically full-rank block
 MONITOR_MAX_BLOCK = 3        # larger non-constant pivot blocks are not watched (cost of det)
 START_PREFERENCE = {0: 1.0, 1: 0.7, 2: 0.4}   # column weights: given starts stay states
@@ -190,8 +195,9 @@ class IndexReduction:
             lines.extend(f"  {name}  [{owner}]" for name, owner in self.algebraic)
         watched = [b for b in self.blocks if b.det is not None]
         if watched:
-            lines.append(f"watched during the run (stops if |det| < {PIVOT_RATIO:g} of its start "
-                         f"value):")
+            lines.append(f"watched during the run (states chosen again if |det| < "
+                         f"{SWITCH_RATIO:g} of its start value and another choice is better "
+                         f"there, stops below {PIVOT_RATIO:g}):")
             lines.extend(f"  pivot on {', '.join(b.dummies)}" for b in watched)
         if self.unwatched:
             lines.append("not watched (block larger than "
@@ -212,7 +218,7 @@ class IndexReduction:
     def watch(self, events):
         """Give the pivot-watch events of ``events`` the action that stops the run."""
         for ev in events:
-            if ev.name.startswith(EVENT_OWNER + "."):
+            if ev.name.startswith(EVENT_OWNER + ".pivot_"):
                 ev.action = _PivotLost(self, int(ev.name.rsplit("_", 1)[1]))
         return events
 
@@ -446,7 +452,7 @@ def _times(k):
 # entry point --------------------------------------------------------------------------------------
 
 def reduce_index(equations, infos, subs, events, observed, given=None, incidence=None,
-                 params=None):
+                 params=None, choice_point=None):
     """Reduce the index of the compiled equations if needed.
 
     Parameters
@@ -468,6 +474,11 @@ def reduce_index(equations, infos, subs, events, observed, given=None, incidence
     params : dict, optional
         The runtime parameters' values by name, for the numbers of the constraint Jacobians
         at the start (a constraint ``(x/L)^2 + (y/L)^2 = 1`` reads ``L``).
+    choice_point : dict, optional
+        Values of the unknowns and their derivatives (``"der(x)"``, ``"der(x, 2)"``) at which
+        the states are chosen, instead of the start values (a run changing its states where
+        the choice made at the start became ill-conditioned, see
+        :mod:`pvgraph._state_switch`); the start-value preferences then do not apply.
 
     Returns
     -------
@@ -505,7 +516,7 @@ def reduce_index(equations, infos, subs, events, observed, given=None, incidence
     if not _perfect([a | b for a, b in zip(inc_y, inc_yp)], n):
         return equations, events, observed, IndexReduction()  # singular: refused downstream
     return _Reducer(equations, infos, unknowns, events, observed, given or {},
-                    params or {}).run()
+                    params or {}, choice_point).run()
 
 
 def _perfect(cols, n):
@@ -519,8 +530,10 @@ def _perfect(cols, n):
 class _Reducer:
     """Pantelides' algorithm and the dummy-derivative selection on one system."""
 
-    def __init__(self, equations, infos, unknowns, events, observed, given, params=None):
+    def __init__(self, equations, infos, unknowns, events, observed, given, params=None,
+                 choice_point=None):
         self.orig = equations
+        self.choice_point = choice_point
         self.params = params or {}
         self.infos = infos
         self.unknowns = unknowns
@@ -678,6 +691,11 @@ class _Reducer:
         values = {}
         for v, (base, order) in enumerate(self.var_key):
             values[derivative_name(base, order)] = self.infos[base].start if order == 0 else 0.0
+        if self.choice_point is not None:
+            for name in values:
+                got = self.choice_point.get(name)
+                if got is not None and math.isfinite(got):
+                    values[name] = float(got)
         return values
 
     def _choose(self, eqs, cand, jac, values):
@@ -743,6 +761,8 @@ class _Reducer:
         return sorted(int(j) for j in match)
 
     def _preference(self, v):
+        if self.choice_point is not None:     # chosen where the run is: conditioning alone
+            return 1.0
         base = self.var_key[v][0]
         prio = 2 if base in self.given else self.infos[base].start_priority
         return START_PREFERENCE.get(prio, 1.0)
@@ -858,9 +878,11 @@ class _Reducer:
                     if math.isfinite(det0) and det0 != 0.0:
                         b.det = E.substitute([det], leaf)[0]
                         b.det0 = det0
-                        cond = b.det * (1.0 / det0) - PIVOT_RATIO
+                        ratio = b.det * (1.0 / det0)
                         new_events.append((EVENT_OWNER, EventSpec(
-                            f"pivot_{watched}", cond, direction=-1)))
+                            f"pivot_{watched}", ratio - PIVOT_RATIO, direction=-1)))
+                        new_events.append((EVENT_OWNER, EventSpec(
+                            f"switch_{watched}", ratio - SWITCH_RATIO, direction=-1)))
                         watched += 1
                 else:
                     result.unwatched.extend(b.dummies)

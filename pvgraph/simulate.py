@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import os
 import re
@@ -242,7 +243,7 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
              atol: float | None = None, solver: str = "pvgraph", t_eval=None,
              max_step: float | None = None, start: dict[str, float] | None = None,
              calc_initial: str | None = "algebraic", y0=None, yp0=None, params=None,
-             **options) -> Solution:
+             switch_states: bool = True, **options) -> Solution:
     """Simulate a circuit (compiled on the fly) or a :class:`System` from ``t_start`` to ``t_end``.
 
     Parameters
@@ -273,6 +274,13 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         Parameter values by name (``{"orifice.A": 2e-6}``), applied with
         :meth:`System.with_params` without compiling again; the solution's ``system`` carries
         them. ``target.parameter_names`` lists the names.
+    switch_states : bool
+        Where a rigid constraint's choice of states becomes ill-conditioned during the run (a
+        Cartesian pendulum passing through the bottom, see :meth:`System.index_report`), stop
+        the step there, choose the states again at that instant (compiling the circuit again)
+        and go on (default); ``False`` stops the run there with a :class:`SolverError`
+        naming the variables. The solution is in the layout of the system the run started
+        with; ``sol.stats["state_switches"]`` lists ``(t, states before, states after)``.
     **options
         Passed on to the solver: for ``"pvgraph"`` :func:`pvgraph.solver.solve_dae`'s options
         (``c_step``, ``linear_solver``, ``max_steps``, ``suppress_alg``, ...).
@@ -349,6 +357,16 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
                   events=system._run_events() or None, t_eval=t_eval, max_step=max_step,
                   calc_initial=calc_initial, var_names=system.names, **options)
     solve = _solver_function(solver)
+    if not isinstance(switch_states, (bool, np.bool_)):
+        raise PvgraphError(f"simulate: switch_states takes True or False, got {switch_states!r}")
+    switches = []
+    if kwargs["events"]:
+        from . import _state_switch
+        switching = switch_states and getattr(system, "_circuit", None) is not None and \
+            bool(_state_switch.watch_names(kwargs["events"]))
+        kwargs["events"] = _state_switch.for_run(kwargs["events"], switching) or None
+        if switching:
+            solve = _switching(solve, system, kwargs, rtol, atol, switches)
     try:
         res = solve(system.residual, (t_start, t_end), y_init, yp_init, **kwargs)
     except SolverError as exc:
@@ -382,13 +400,114 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     if not res.success:
         raise PvgraphError(f"{system.name}: simulation stopped early: {res.message}")
     sol = Solution(system, res.t, res.y, res.yp, events=res.events, stats=res.stats,
-                   mode_log=system.mode_log, solver=solver)
+                   mode_log=getattr(res, "mode_log", None) or system.mode_log, solver=solver)
+    if switches:
+        sol.stats["state_switches"] = switches
     if calc_initial == "all" and reduction is not None and reduction.given:
         # the components' given starts (Mass(x0=...)) are moved by "all" as start= ones are
         given = {**reduction.given, **given}
     _check_starts_kept(sol, given, calc_initial)
     _check_pressures(sol)
     return sol
+
+
+def _switching(solve, system, kwargs, rtol, atol, switches):
+    """``solve`` going on where a pivot watch of index reduction fires: the states chosen
+    again there (see :mod:`pvgraph._state_switch`), the segments returned as one result in
+    ``system``'s layout; ``switches`` receives ``(t, states before, states after)``."""
+    from . import _state_switch as S
+
+    def run(residual, span, y0, yp0, **kw):
+        t_end = span[1]
+        current, kw = system, dict(kw)
+        pieces = []        # (system, result) per segment
+        kept = set()       # switch watches whose block kept its states (not watched again)
+        t_eval = kw.get("t_eval")
+        while True:
+            res = solve(current.residual, span, y0, yp0, **kw)
+            pieces.append((current, res))
+            rec = S.fired(res, S.watch_names(kw["events"]))
+            if rec is None or not res.success:
+                break
+            new = S.switched(current, rec) if len(switches) < S.MAX_SWITCHES else None
+            if new is None and ".pivot_" in rec.name:   # no better choice, and nearly singular
+                raise current.index_reduction.pivot_lost(int(rec.name.rsplit("_", 1)[1]),
+                                                         rec.t)
+            if new is None:     # this choice is still the best there: go on with it
+                kept.add(rec.name)
+                y0, yp0 = rec.y, rec.yp
+                kw["events"] = S.for_run(current._run_events(), True, kept)
+            else:
+                switches.append((float(rec.t), S.states_of(current), S.states_of(new)))
+                new.modes[:] = current.modes
+                new.mode_log = [(float(rec.t), tuple(new.modes))]
+                y0, yp0 = (a[0] for a in S.to_layout(new, current, np.array([rec.t]), rec.y,
+                                                     rec.yp))
+                kept = set()
+                kw.update(algebraic=new.algebraic, jac=new.solver_jacobian(),
+                          jac_sparsity=new.jac_sparsity, var_names=new.names,
+                          events=S.for_run(new._run_events(), True),
+                          atol=_carried_atol(system, new, kw["atol"], rtol, atol))
+                if "suppress_alg" in kw:
+                    kw["suppress_alg"] = bool(np.any(~np.asarray(new.algebraic)))
+                current = new
+            kw["calc_initial"] = "algebraic"
+            span = (float(rec.t), t_end)
+            if t_eval is not None:
+                t_eval = np.asarray(t_eval)[np.asarray(t_eval) > rec.t]
+                if t_eval.size == 0:
+                    break
+                kw["t_eval"] = t_eval
+        if len(pieces) == 1:
+            return res
+        return _joined(system, pieces)
+    return run
+
+
+def _carried_atol(system, new, atol_vec, rtol, atol):
+    """The absolute tolerances of ``new``'s unknowns: by name those given per unknown of
+    ``system``, else the relative rule of :func:`simulate`."""
+    out = (rtol if atol is None or np.ndim(atol) else atol) * new.nominal
+    if atol is not None and np.ndim(atol):
+        for j, name in enumerate(new.names):
+            k = system.index.get(name)
+            if k is not None:
+                out[j] = atol_vec[k]
+    return out
+
+
+def _joined(system, pieces):
+    """One result of the segments ``pieces`` (``(system, result)``) in ``system``'s layout:
+    times in order (a segment's first point, the switch instant the previous one ends on,
+    once), events, statistics summed, the modes' log of every segment."""
+    from . import _state_switch as S
+    from .solver.result import DAEResult
+    ts, ys, yps, events, log = [], [], [], [], []
+    stats: dict = {}
+    for k, (sysk, res) in enumerate(pieces):
+        t, y, yp = np.asarray(res.t), np.asarray(res.y), np.asarray(res.yp)
+        if k and len(t) and ts and len(ts[-1]) and t[0] == ts[-1][-1]:
+            t, y, yp = t[1:], y[1:], yp[1:]
+        if sysk is not system and len(t):
+            y, yp = S.to_layout(system, sysk, t, y, yp)
+        ts.append(t)
+        ys.append(y.reshape(len(t), system.n))
+        yps.append(yp.reshape(len(t), system.n))
+        for rec in res.events:
+            if sysk is not system:
+                ry, ryp = S.to_layout(system, sysk, np.array([rec.t]), rec.y, rec.yp)
+                rec = dataclasses.replace(rec, y=ry[0], yp=ryp[0])
+            events.append(rec)
+        for key, value in res.stats.items():
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                stats[key] = stats.get(key, 0) + value
+        log.extend(sysk.mode_log)
+    last = pieces[-1][1]
+    out = DAEResult(t=np.concatenate(ts), y=np.concatenate(ys), yp=np.concatenate(yps),
+                    events=events, t_events=np.array([r.t for r in events], dtype=float),
+                    stats=stats, success=last.success, message=last.message)
+    out.mode_log = log
+    return out
 
 
 def _solver_function(solver):

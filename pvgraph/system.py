@@ -934,7 +934,9 @@ class System:
         new.yp0 = self.yp0.copy()
         return new
 
-    def _recompiled(self, models):
+    def _recompiled(self, models, **options):
+        """The circuit compiled again with the components' parameter models of this system
+        updated by ``models`` (``{path: model}``); ``options`` go to ``compile_circuit``."""
         from .compiler import compile_circuit
         comps = self._components
         merged = {path: m for path, m in self._models.items() if m is not comps[path].params}
@@ -943,7 +945,7 @@ class System:
         try:
             for path, model in merged.items():
                 comps[path].params = model
-            system = compile_circuit(self._circuit)
+            system = compile_circuit(self._circuit, **options)
             system.__dict__.pop("_known_roles", None)   # needed by Circuit.compile only
             return system
         finally:

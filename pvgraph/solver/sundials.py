@@ -221,6 +221,7 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
         return SolverError(text + ".", t=t, h=h, culprits=culprits)
 
     ts, ys, yps, records = [], [], [], []
+    stopped = False     # by a terminal event
     i_eval = 0
     nsteps = nje = 0
     started = time.perf_counter()
@@ -339,6 +340,7 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
             te, fired, ev, ye, ype = hit
             if ev.terminal:
                 message = f"A terminal event ({ev.name!r}) occurred at t = {te:.9g}."
+                stopped = True      # the output times after it are not reached
                 break
             for j in fired:
                 ye, ype = event_list[j].apply(te, ye, ype)
@@ -351,7 +353,7 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                     ys.append(y.copy())
                     yps.append(yp.copy())
                 break
-        if t_eval is not None:
+        if t_eval is not None and not stopped:
             while i_eval < t_eval.size:     # output times at an action exactly at t_end
                 ts.append(t_eval[i_eval])
                 ys.append(y.copy())

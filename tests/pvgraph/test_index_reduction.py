@@ -14,7 +14,7 @@ from pvgraph.components.mechanical import ForceInput, Inertia, Mass, PositionInp
 from pvgraph.components.mechanical.rotational import Rotational
 from pvgraph.components.signal import Constant, Ramp, Sine, Step, TimeTable
 from pvgraph import (Circuit, Component, Hydraulic, InitializationError, Mechanical, Params,
-                     SolverError, StructureError, Variable, der)
+                     PvgraphError, SolverError, StructureError, Variable, der)
 from pvgraph import expr as E
 from pvgraph.index_reduction import derivative_name, time_derivative
 from pvgraph.simulate import simulate
@@ -308,9 +308,67 @@ def test_pendulum_stops_by_name_where_the_state_choice_would_have_to_change():
     T = 4.0 * math.sqrt(1.0 / G) * ellipk(math.sin(0.9) ** 2)
     with pytest.raises(SolverError, match=r"at t = 0\.\d+ s the dummy derivatives .*der\(p\.x, 2\)"
                                           r".*choice of states \(p\.vy, p\.y\)") as info:
-        simulate(s, T)
+        simulate(s, T, switch_states=False)
     # x passes through a tenth of its start value shortly before the bottom (T/4)
     assert 0.1 * T < info.value.t < 0.25 * T
+
+
+@pytest.mark.parametrize("solver, theta0, tol", [("pvgraph", 1.8, 2e-5), ("ida", 1.8, 2e-5),
+                                                 ("pvgraph", 3.0, 3e-3)])
+def test_a_cartesian_pendulum_swinging_past_the_horizontal_changes_its_states(solver, theta0,
+                                                                              tol):
+    """Released above the horizontal, y and vy are the states at the start (x is the larger
+    coordinate); the choice is made again where it becomes ill-conditioned, near the bottom
+    (x, vx) and near the horizontal (y, vy), four times a period. x at the quarter periods is
+    that of the elliptic integral's period (a phase error of 6e-6 m after three periods at
+    rtol 1e-8 from 1.8 rad; 6.5e-4 from 3.0 rad, 0.14 rad from the top, where the period
+    grows without bound with the amplitude), the link keeps its length, energy is conserved."""
+    L = 1.0
+    c = Circuit("pendulum")
+    c.add("p", Pendulum(theta0=theta0, L=L))
+    s = c.compile()
+    T = 4.0 * math.sqrt(L / G) * ellipk(math.sin(theta0 / 2.0) ** 2)
+    t_eval = np.linspace(0.0, 3.0 * T, 13)
+    sol = simulate(s, 3.0 * T, rtol=1e-8, t_eval=t_eval, solver=solver)
+    x0 = L * math.sin(theta0)
+    assert sol.t == pytest.approx(t_eval, abs=0.0)
+    assert sol["p.x"] == pytest.approx(np.tile([x0, 0.0, -x0, 0.0], 4)[:13], abs=tol)
+    assert np.allclose(sol["p.x"] ** 2 + sol["p.y"] ** 2, L * L, rtol=1e-8)
+    energy = 0.5 * (sol["p.vx"] ** 2 + sol["p.vy"] ** 2) + G * sol["p.y"]
+    assert np.ptp(energy) < 5e-4
+    switches = sol.stats["state_switches"]
+    assert len(switches) in (12, 13) if theta0 < 2.0 else len(switches) >= 12
+    first = ("p.vy", "p.y") if theta0 < 2.0 else ("p.vx", "p.x")   # the larger coordinate's
+    assert switches[0][1] == first == tuple(sorted(n for n, d in zip(s.names, s.differential)
+                                                   if d))
+    assert all(a[2] == b[1] for a, b in zip(switches, switches[1:]))
+    # the solution is in the layout of the system the run started with
+    assert sol.system is s and sol.y.shape == (13, s.n)
+
+
+def test_state_switches_keep_runtime_parameters_and_the_derivatives():
+    """The circuit compiled again at a switch has the run's parameter values (a 2 m link:
+    the period of a 2 m pendulum); every output time of a dense run is in order, and the
+    derivative of x read from the solution is vx (to 1e-4 m/s of 6 m/s: where x is algebraic
+    its rate is the solver's, outside the error test)."""
+    theta0, L = 1.8, 2.0
+    c = Circuit("pendulum")
+    c.add("p", Pendulum(theta0=theta0, L=1.0))
+    s = c.compile()
+    T = 4.0 * math.sqrt(L / G) * ellipk(math.sin(theta0 / 2.0) ** 2)
+    sol = simulate(s, T, rtol=1e-8, params={"p.L": L})
+    assert len(sol.stats["state_switches"]) >= 3
+    assert np.all(np.diff(sol.t) > 0.0)
+    assert sol.final("p.x") == pytest.approx(L * math.sin(theta0), abs=2e-5)
+    assert np.max(np.abs(sol.der("p.x") - sol["p.vx"])) < 1e-4
+    assert np.allclose(sol["p.x"] ** 2 + sol["p.y"] ** 2, L * L, rtol=1e-8)
+
+
+def test_switch_states_is_a_flag():
+    c = Circuit("pendulum")
+    c.add("p", Pendulum(theta0=0.5))
+    with pytest.raises(PvgraphError, match="switch_states takes True or False"):
+        simulate(c, 0.1, switch_states="yes")
 
 
 def test_a_position_driven_mass_runs_on_both_backends_without_max_step():
