@@ -661,23 +661,19 @@ def _format_table(result, units, si, param_units=None) -> str:
 # linearize
 
 def _check_outputs(system, names) -> None:
-    """Every name is a variable of the system (not a derived output): a linear model's output."""
+    """Every name is a variable or a derived output of the system: a linear model's output."""
     for name in names:
         try:
-            real = system.resolve_name(name)
-        except KeyError:
-            real = None
-        if real is not None and real not in system.observed:
+            system.resolve_name(name)
             continue
-        if real is not None:
-            raise PvgraphError(f"--output {name!r} is a derived output (computed after the "
-                               f"solve); linearise one of the variables it is computed from, "
-                               f"e.g. a port pressure or flow")
-        close = [n for n in system.close_names(name) if n not in system.observed]
+        except KeyError:
+            pass
+        close = system.close_names(name)
         hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
         raise PvgraphError(f"--output {name!r} is not a variable of the circuit{hint} (it has "
                            f"{system.n + len(system.aliases)} variables, e.g. "
-                           f"{', '.join(system.names[:3])})")
+                           f"{', '.join(system.names[:3])}, and {len(system.observed)} derived "
+                           f"outputs)")
 
 
 def _frequency_response(lm, freq_hz, output: int, input: int = 0):

@@ -830,6 +830,18 @@ class System:
             return gy, gp[cols]
         raise KeyError(self._unknown(name))
 
+    def observed_gradient(self, name: str, t, y, yp):
+        """Partial derivatives of the derived output ``name`` with respect to the unknowns
+        and their rates at ``(t, y, yp)``: ``(d/dy (n,), d/dy' (n,))``."""
+        name = self.resolve_name(name)
+        if name not in self.observed:
+            raise KeyError(f"{name!r} is not a derived output of {self.name}")
+        env = _Env(t, y, yp, self.modes, self._P)
+        gy, gyp = np.zeros(self.n), np.zeros(self.n)
+        for (op, k), d in E.gradient(self._obs_exprs[name], ("y", "yp")).items():
+            (gy if op == "y" else gyp)[k] += E.evaluate(d, env)
+        return gy, gyp
+
     def _param_columns(self, names):
         if names is None:
             return list(range(len(self.parameters)))

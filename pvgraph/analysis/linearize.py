@@ -433,9 +433,11 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
     inputs : mapping name -> array (n,)
         Residual sensitivity ``dF/du`` of each input (see :func:`input_sensitivity`).
     outputs : names
-        Any unknown or eliminated alias of the system (states, algebraic variables), or an
-        exposed-port name of one (:meth:`System.exposed_names`); the model keeps the names as
-        given, and its methods also accept the other name of the same variable.
+        Any unknown or eliminated alias of the system (states, algebraic variables), a
+        derived output (an orifice's ``q``, a power: its gradient at the operating point,
+        through the rates of the states where it reads them), or an exposed-port name of one
+        (:meth:`System.exposed_names`); the model keeps the names as given, and its methods
+        also accept the other name of the same variable.
     direct : mapping name -> array (len(outputs),), optional
         ``d output / d u`` of each input at fixed unknowns: an output the compiler expressed
         in an input (a source's own flow ``pump.port.q = -Q``, a drive force holding ``k u``)
@@ -460,7 +462,6 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
                                f"for another system (other parameter values?); use "
                                f"steady_state(system)")
     outputs = _name_list(outputs, "linearize: outputs")
-    _check_linear_outputs(system, outputs)
     for what, arg in (("inputs", inputs), ("direct", direct)):
         if arg is not None and not isinstance(arg, Mapping):
             raise PvgraphError(f"linearize: {what} must be a mapping {{input name: array}}, "
@@ -491,6 +492,7 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
     x = np.flatnonzero(system.differential)
     z = np.flatnonzero(system.algebraic)
     J_y, J_yp = _jacobians(system, op)
+    yp_op = np.zeros(n) if getattr(op, "yp", None) is None else np.asarray(op.yp, float)
     F_u = np.column_stack([np.asarray(v, dtype=float).reshape(n) for v in inputs.values()]) \
         if inputs else np.zeros((n, 0))
     M = np.hstack([J_yp[:, x], J_y[:, z]])
@@ -507,9 +509,20 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
     C = np.zeros((len(outputs), nx))
     D = np.zeros((len(outputs), len(inputs)))
     for r, name in enumerate(outputs):
-        if name in system.observed:
-            raise KeyError(f"{name!r} is a derived output; linearise one of the variables it "
-                           f"is computed from instead")
+        real = system.resolve_name(name)
+        if real in system.observed and real not in system.index:
+            # a derived output h(y, y'): its gradient, algebraic unknowns through Zx, Zu and
+            # the states' rates through x' = A x + B u
+            gy, gyp = system.observed_gradient(real, op.t, op.y, yp_op)
+            if np.any(gyp[z] != 0.0):
+                rate_of = system.names[int(z[np.flatnonzero(gyp[z])[0]])]
+                raise PvgraphError(
+                    f"linearize: {name!r} reads the rate of an algebraic variable "
+                    f"({rate_of}), which a state-space model does not hold (it would need the "
+                    f"inputs' rates)")
+            C[r] = gy[x] + gy[z] @ Zx + gyp[x] @ A
+            D[r] = gy[z] @ Zu + gyp[x] @ B
+            continue
         coef, idx, _ = system.resolve(name)
         if idx is None:
             continue
@@ -550,7 +563,16 @@ def _input_derivatives(build, u0, name, op, outputs, eps_rel=1e-5, du=None):
             raise PvgraphError(f"changing input {name!r} changed the unknowns of the compiled "
                                f"system; linearise a build whose structure does not depend on it")
         values = []
+        derived = None
         for out in outputs:
+            real = s.resolve_name(out)
+            if real in s.observed and real not in s.index:
+                if derived is None:
+                    yp = np.zeros(s.n) if op.yp is None else np.asarray(op.yp, float)
+                    derived = s.evaluate_observed(np.array([op.t]), op.y[None, :], yp[None, :],
+                                                  [list(s.modes)])
+                values.append(float(derived[real][0]))
+                continue
             coef, idx, off = s.resolve(out)
             values.append(off + (0.0 if idx is None else coef * op.y[idx]))
         return s.residual(op.t, op.y, op.yp), np.array(values, dtype=float)
@@ -576,27 +598,6 @@ def _input_derivatives(build, u0, name, op, outputs, eps_rel=1e-5, du=None):
     step = sign * h
     return ((-3.0 * zero[0] + 4.0 * one[0] - two[0]) / (2.0 * step),
             (-3.0 * zero[1] + 4.0 * one[1] - two[1]) / (2.0 * step))
-
-
-def _check_linear_outputs(system, outputs) -> None:
-    """Outputs of a linear model are the system's variables; a derived output (an orifice's
-    flow, a power) is refused by name before anything is solved, with the way to its
-    steady-state derivatives."""
-    derived = []
-    for name in outputs:
-        try:
-            real = system.resolve_name(name)
-        except KeyError:
-            continue            # unknown names are told with close matches where looked up
-        if real in system.observed and real not in system.index:
-            derived.append(name)
-    if derived:
-        raise PvgraphError(
-            f"linearize: {', '.join(map(repr, derived))} "
-            f"{'is a derived output' if len(derived) == 1 else 'are derived outputs'} "
-            f"(computed from the unknowns); a linear model's outputs are the system's "
-            f"variables: take the variables it is computed from, or its steady-state "
-            f"derivatives with op.sensitivity({derived[0]!r}, params)")
 
 
 def _si_number(value, what: str) -> float:
@@ -665,7 +666,8 @@ def linearize_circuit(build: Callable[[dict], object], u0: Mapping[str, float],
         if info is not None and getattr(info, "unit", None) is not None:
             from ..units import number_in
             number_in(value, info.unit, f"u0[{name!r}]")
-    _check_linear_outputs(system, outputs)
+    for name in outputs:
+        system.resolve_name(name)   # an unknown name is told (with close matches) up front
     if op is None:
         op = steady_state(system, y0=y0, tol=tol)
     du = dict(du or {})

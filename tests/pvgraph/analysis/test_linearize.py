@@ -517,11 +517,10 @@ def test_margins_find_a_gain_crossover_far_from_the_poles():
                                       abs=1e-4)
 
 
-def test_linearize_circuit_takes_quantities_and_refuses_derived_outputs_up_front():
+def test_linearize_circuit_takes_quantities_and_derived_outputs():
     from pvgraph import Circuit
     from pvgraph.analysis import linearize_circuit
     from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
-    from pvgraph.errors import PvgraphError
 
     def build(u):
         c = Circuit("demo")
@@ -537,9 +536,45 @@ def test_linearize_circuit_takes_quantities_and_refuses_derived_outputs_up_front
     np.testing.assert_allclose(by_unit.poles(), by_si.poles(), rtol=1e-9)
     # dp/dQ of the orifice law at 6 L/min: rho Q / (Cd A)^2
     assert by_unit.dc_gain()[0, 0] == pytest.approx(870.0 * 1e-4 / (0.6 * 2e-6) ** 2, rel=1e-4)
-    with pytest.raises(PvgraphError, match=r"'orifice.q' is a derived output .* "
-                                           r"op.sensitivity"):
-        linearize_circuit(build, {"pump.Q": 1e-4}, ["orifice.q"])
+    # derived outputs: at steady state all the pump's flow passes the orifice (dq/dQ = 1),
+    # its power loss q dp grows by dp + Q d(dp)/dQ = 3 dp; the pole is the volume's, V/beta
+    # over the orifice's conductance dq/dp = Q / (2 dp)
+    Q, Cd, A, rho = 1e-4, 0.6, 2e-6, 870.0
+    dp = rho / 2.0 * (Q / (Cd * A)) ** 2
+    lm = linearize_circuit(build, {"pump.Q": Q}, ["orifice.q", "orifice.P_loss", "node.port.p"])
+    gain = lm.dc_gain()[:, 0]
+    assert gain[0] == pytest.approx(1.0, rel=1e-6)
+    assert gain[1] == pytest.approx(3.0 * dp, rel=1e-4)
+    np.testing.assert_allclose(lm.poles(), by_si.poles(), rtol=1e-12)
+    with pytest.raises(KeyError, match=r"'orifice.qq'. Close matches: \['orifice.q'"):
+        linearize_circuit(build, {"pump.Q": 1e-4}, ["orifice.qq"])
+
+
+def test_a_derived_output_reading_a_rate_is_linearised_through_the_states():
+    """A spool mass on a spring and damper pushed by a force: its acceleration (a derived output,
+    der(v)) is (F - k x - d v) / m: C = [-k/m, -d/m] on (x, v), D = 1/m."""
+    from pvgraph import Circuit
+    from pvgraph.analysis import linearize, steady_state
+    from pvgraph.components import Constant, Damper, ForceInput, LinearSpring, SpoolMass
+
+    m, k, d, F = 2.0, 800.0, 30.0, 5.0
+    c = Circuit("msd")
+    src = c.add("F", Constant(k=F))
+    force = c.add("force", ForceInput())
+    mass = c.add("m", SpoolMass(m=m))
+    spring = c.add("k", LinearSpring(k=k))
+    damper = c.add("d", Damper(d=d))
+    c.connect(src.y, force.u)
+    c.connect(force.flange, mass.flange, spring.flange, damper.flange)
+    s = c.compile()
+    op = steady_state(s)
+    assert op["m.flange.x"] == pytest.approx(F / k, rel=1e-9)
+    dFdu = s.parameter_jacobian(op.t, op.y, op.yp, ["F.k"])[:, 0]
+    lm = linearize(s, op, {"F": dFdu}, ["m.a", "m.flange.x"])
+    order = [lm.state_names.index(n) for n in ("m.flange.x", "m.v")]
+    np.testing.assert_allclose(lm.C[0, order], [-k / m, -d / m], rtol=1e-9)
+    assert lm.D[0, 0] == pytest.approx(1.0 / m, rel=1e-9)
+    assert lm.dc_gain()[:, 0] == pytest.approx([0.0, 1.0 / k], abs=1e-12)
 
 
 def test_an_input_given_as_a_quantity_is_checked_against_its_parameter():
