@@ -338,6 +338,11 @@ def _dc_gain_singular(A, B, C, D, state_names):
     """
     import scipy.linalg as sla
     n = A.shape[0]
+    # balanced first (a diagonal similarity by powers of two, exact): the states of a
+    # hydraulic model span some fifteen decades (Pa against m^3), and the Schur vectors of
+    # the unbalanced A mix its blocks at the percent level
+    A, Tb = sla.matrix_balance(A, permute=False, separate=False)
+    B, C = B / np.diag(Tb)[:, None], C * np.diag(Tb)[None, :]
     scale = max(np.linalg.norm(A, 1), np.finfo(float).tiny)
     lam = np.linalg.eigvals(A)
     tol = max(1e3 * np.finfo(float).eps * scale, np.min(np.abs(lam)) * (1.0 + 1e-6))

@@ -394,6 +394,38 @@ def test_dc_gain_of_an_integrator_is_infinite_on_its_paths_only():
     np.testing.assert_allclose(G.ravel(), [0.0, 0.25], atol=1e-12)
 
 
+def test_dc_gain_of_a_trapped_cylinder_is_its_oil_stiffness():
+    """A cylinder with both ports closed on a 500 kg mass (states p_A, p_B, x, v: Pa against m,
+    fifteen decades apart): the chambers' oil is conserved (two poles at s = 0 that a force
+    does not excite), and x/F at DC is 1/k_h with k_h = beta (A_A^2/V_A + A_B^2/V_B) =
+    7e8 (4e-6/1.1e-3 + 1e-6/6e-4) N/m (the unbalanced Schur form gave 2.1 % more)."""
+    from pvgraph import Circuit
+    from pvgraph.analysis import linearize_circuit
+    from pvgraph.components import Constant, Cylinder, ForceInput, Mass, Plug
+
+    def build(u):
+        c = Circuit("trap")
+        pa, pb = c.add("pa", Plug()), c.add("pb", Plug())
+        cyl = c.add("cyl", Cylinder(A_A="20 cm^2", A_rod="10 cm^2", stroke="1 m",
+                                    V_dead_A="0.1 L", V_dead_B="0.1 L", p0_A="50 bar",
+                                    p0_B="100 bar"))
+        m = c.add("m", Mass(m="500 kg", x0="0.5 m", b="100 N s/m"))
+        f, k = c.add("f", ForceInput()), c.add("k", Constant(k=u["F"]))
+        c.connect(pa.port, cyl.A)
+        c.connect(pb.port, cyl.B)
+        c.connect(cyl.flange, m.flange, f.flange)
+        c.connect(k.y, f.u)
+        return c
+    lm = linearize_circuit(build, {"F": 0.0}, ["cyl.flange.x"])
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")      # finite: no integrator on the path
+        G = lm.dc_gain()
+    k_h = 7e8 * ((20e-4) ** 2 / 1.1e-3 + (10e-4) ** 2 / 6e-4)
+    assert G[0, 0] == pytest.approx(1.0 / k_h, rel=1e-6)
+    np.testing.assert_allclose(np.abs(lm.poles()[2:]), math.sqrt(k_h / 500.0), rtol=1e-4)
+
+
 def test_more_bad_arguments_to_linear_models_are_named():
     """A float index, bad root-locus gains, a model without inputs and non-mapping or
     misnamed dF/du and direct terms are refused by name (numpy or python-control errors)."""
