@@ -164,7 +164,7 @@ _UNITS = {
     "kgf": (9.80665, _dim(m=1, kg=1, s=-2), False),
     "hp": (0.45359237 * 9.80665 * 0.3048 * 550.0, _dim(m=2, kg=1, s=-3), False),
     "gal": (3.785411784e-3, _dim(m=3), False),                # US gallon
-    "Nm": (1.0, _dim(m=2, kg=1, s=-2), False),               # "N m" written together
+    "Nm": (1.0, _dim(m=2, kg=1, s=-2), True),                # "N m" written together, "kNm"
     "percent": (0.01, _ONE, False),
     "RPM": (2.0 * math.pi / 60.0, _dim(s=-1), False),
     "rps": (2.0 * math.pi, _dim(s=-1), False),
@@ -173,10 +173,19 @@ _UNITS = {
     "inch": (0.0254, _dim(m=1), False), "inches": (0.0254, _dim(m=1), False),
     "foot": (0.3048, _dim(m=1), False), "feet": (0.3048, _dim(m=1), False),
     "USgpm": (3.785411784e-3 / 60.0, _dim(m=3, s=-1), False),
+    # the spellings of data sheets that cannot be misread (no SI prefix is upper case P, B or L
+    # before these letters)
+    "PSI": (6894.757293168361, _dim(m=-1, kg=1, s=-2), False),
+    "BAR": (BAR, _dim(m=-1, kg=1, s=-2), False), "Bar": (BAR, _dim(m=-1, kg=1, s=-2), False),
+    "LPM": (LPM, _dim(m=3, s=-1), False), "GPM": (3.785411784e-3 / 60.0, _dim(m=3, s=-1), False),
+    "degree": (math.pi / 180.0, _ONE, False), "degrees": (math.pi / 180.0, _ONE, False),
+    "turn": (2.0 * math.pi, _ONE, False), "turns": (2.0 * math.pi, _ONE, False),
+    "revs": (2.0 * math.pi, _ONE, False),
 }
 #: units that count an angle (a power of the radian, which is dimensionless in SI): the
 #: parser carries their angle exponent beside the dimension, see :func:`to_unit`
-_ANGLE = {"rad": 1, "deg": 1, "rev": 1, "rpm": 1, "RPM": 1, "rps": 1, "r": 1}
+_ANGLE = {"rad": 1, "deg": 1, "rev": 1, "rpm": 1, "RPM": 1, "rps": 1, "r": 1, "degree": 1,
+          "degrees": 1, "turn": 1, "turns": 1, "revs": 1}
 #: characters read as the notation they stand for ("mm²", "m/s²", "90°")
 _SPELLED = {"²": "^2", "³": "^3", "°": " deg", "⁻¹": "^-1"}
 _PREFIXES = {"p": 1e-12, "n": 1e-9, "u": 1e-6, "µ": 1e-6, "μ": 1e-6, "m": 1e-3, "c": 1e-2,
@@ -216,7 +225,29 @@ def _symbol(name: str):
         if name.startswith(prefix) and rest in _UNITS and _UNITS[rest][2]:
             f, d = _UNITS[rest][:2]
             return scale * f, d, _ANGLE.get(rest, 0)
-    raise UnitError(f"unknown unit {name!r}")
+    raise UnitError(f"unknown unit {name!r}{_close_units(name)}")
+
+
+def _close_units(name: str) -> str:
+    """``"; did you mean 'psi'?"`` for a unit written in another case or close to a known
+    one, else ``""``."""
+    import difflib
+    same = [u for u in _UNITS if u.lower() == name.lower()]
+    if name.isupper() and name.lower() not in same:     # "MM": the millimetre, first
+        try:
+            _symbol(name.lower())
+            same.append(name.lower())
+        except UnitError:
+            pass
+    for prefix in _PREFIXES:        # "MPA", "kpa", "KPA": a prefixed unit in another case
+        for written in {prefix, prefix.upper()} - ({"M"} if prefix == "m" else set()):
+            if name.startswith(written) and len(name) > len(written):
+                rest = name[len(written):].lower()
+                same += [prefix + u for u, (_, _, pre) in _UNITS.items()
+                         if pre and u.lower() == rest]
+    close = list(dict.fromkeys(same)) or difflib.get_close_matches(name, list(_UNITS), n=3,
+                                                                    cutoff=0.75)
+    return f"; did you mean {' or '.join(map(repr, close))}?" if close else ""
 
 
 def parse_unit(text: str) -> tuple[float, tuple]:

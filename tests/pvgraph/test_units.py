@@ -1,6 +1,7 @@
 """Quantities with units at the parameter boundary, and the display convention."""
 
 import math
+import re
 
 import pytest
 
@@ -8,8 +9,10 @@ from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
 from pvgraph.components.signal.sources import TimeTable
 from pvgraph import Circuit, ParameterError
 from pvgraph.simulate import simulate
-from pvgraph.units import (BAR, LPM, UnitError, declared_unit, display, format_value, lpm,
-                           litre, mm2, parse_unit, to_unit)
+from pvgraph.units import (BAR, LPM, UnitError, angle_power, declared_unit, display,
+                           format_value, lpm, litre, mm2, parse_unit, to_si, to_unit)
+
+
 
 
 @pytest.mark.parametrize("text, unit, si", [
@@ -236,3 +239,26 @@ def test_a_plain_number_too_large_for_si_is_pointed_at_units():
     with pytest.raises(ParameterError, match=r"V = -1.0: Input should be greater than 0 "
                                              r"\[m\^3\]$"):
         VolumeNode(V=-1.0)
+
+
+@pytest.mark.parametrize("text, si", [
+    ("3000 PSI", 3000 * 6894.757293168361), ("100 BAR", 1e7), ("3 Bar", 3e5),
+    ("10 LPM", 10 / 60000), ("10 GPM", 10 * 3.785411784e-3 / 60), ("69 degrees", 69 * math.pi / 180),
+    ("1 degree", math.pi / 180), ("2 turns", 4 * math.pi), ("2 kNm", 2000.0),
+])
+def test_data_sheet_spellings_are_read(text, si):
+    assert to_si(text) == pytest.approx(si, rel=1e-15)
+
+
+@pytest.mark.parametrize("text, hint", [
+    ("10 Lpm", "did you mean 'lpm' or 'LPM'?"), ("5 MPA", "did you mean 'MPa'?"),
+    ("3 kpa", "did you mean 'kPa'?"), ("4 MM", "did you mean 'mm' or 'Mm'?"),
+    ("1 barr", "did you mean 'bar'?"),
+])
+def test_a_unit_in_another_case_or_misspelt_is_refused_with_the_close_ones(text, hint):
+    with pytest.raises(UnitError, match=re.escape(hint)):
+        to_si(text)
+
+
+def test_an_angle_per_turn_counts_the_angle():
+    assert angle_power("cm^3/turn") == -1 and angle_power("degrees") == 1
