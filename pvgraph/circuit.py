@@ -338,6 +338,14 @@ class Circuit:
             loose = [i for i in _pressure_islands(self) if not i["volumes"]]
             if loose:
                 found = str(exc)
+                if "contradicts the others" in found:   # the flows contradict: the cause
+                    names = ", ".join(sorted({c for i in loose for c in i["components"]})[:6])
+                    raise StructureError(
+                        f"circuit {self.name!r}: {found}\n(The network of {names} has no "
+                        f"pressure of its own either: flow sources with nothing between them, "
+                        f"or a flow source into a closed end, fix flows, not a pressure. Put a "
+                        f"VolumeNode and a relief valve between them, or remove one source.)"
+                    ) from None
                 if "repeats the others" in found:   # the loop's missing reference, not 2 sources
                     found = found.split(" This happens when")[0]
                 raise StructureError(f"{_no_reference_message(self, loose)}\n(The structural "

@@ -15,7 +15,7 @@ from pvgraph import Circuit
 from pvgraph import circuit as C
 from pvgraph.component import Component, Hydraulic, Params
 from pvgraph.components import Orifice, Tank, VolumeNode
-from pvgraph.errors import PlausibilityWarning
+from pvgraph.errors import PlausibilityWarning, StructureError
 from pvgraph.units import litre, mm2
 
 
@@ -140,3 +140,26 @@ def test_alias_elimination_hands_on_the_exact_incidence(build):
     kept, read = _incidence_of_alias_elimination(circuit)
     assert len(kept) == len(read) > 0
     assert kept == read
+
+
+def test_flow_sources_in_series_are_told_as_such_not_as_a_missing_tank():
+    """Two ideal pumps in series (tank -> p1 -> p2 -> tank) and a pump into a plug: the tank
+    is there; the message leads with the node whose flows contradict and says what to put
+    between them."""
+    from pvgraph.components import Plug, Pump, Tank
+    c = Circuit("x")
+    p1, p2, t = c.add("p1", Pump(Q0="10 L/min")), c.add("p2", Pump(Q0="5 L/min")), c.add("t", Tank())
+    c.connect(t.port, p1.a)
+    c.connect(p1.b, p2.a)
+    c.connect(p2.b, t.port)
+    with pytest.raises(StructureError, match=r"^circuit 'x': node\{p1.b, p2.a\}: sum of q is zero "
+                                             r"contradicts the others.*\n.*network of p1, p2.*"
+                                             r"VolumeNode and a relief valve") as info:
+        c.compile()
+    assert "Connect a Tank" not in str(info.value)
+    d = Circuit("y")
+    p, t, plug = d.add("p", Pump(Q0="10 L/min")), d.add("t", Tank()), d.add("pl", Plug())
+    d.connect(t.port, p.a)
+    d.connect(p.b, plug.port)
+    with pytest.raises(StructureError, match=r"(?s)node\{p.b, pl.port\}.*contradicts.*closed end"):
+        d.compile()
