@@ -6,7 +6,7 @@ component in +x (positive into the component). Two-flange components use ``a`` a
 """
 
 from .end_stop import EndStop
-from .friction import Damper, Friction, TwoFlangeDamper
+from .friction import Damper, Friction, LuGreFriction, TwoFlangeDamper
 from .inputs import ForceInput, PositionInput
 from .mass import LEVER_EQUIVALENT_MASS, MAIN_SPOOL_MASS, Fixed, Free, Mass, SpoolMass
 from .rotational import (AngleSensor, Inertia, RotationalDamper, RotationalFixed,
@@ -18,7 +18,7 @@ from .transmissions import Gear, Lever, RackPinion
 from .springs import CenteringSpring, LinearSpring, TwoFlangeSpring, TwoStageSpring
 
 __all__ = ["SpoolMass", "Mass", "Fixed", "Free", "LinearSpring", "TwoFlangeSpring", "TwoStageSpring",
-           "CenteringSpring", "Friction", "Damper", "TwoFlangeDamper", "EndStop", "ForceInput",
+           "CenteringSpring", "Friction", "LuGreFriction", "Damper", "TwoFlangeDamper", "EndStop", "ForceInput",
            "PositionInput", "PositionSensor", "VelocitySensor", "ForceSensor", "RackPinion", "Lever", "Gear",
            "Inertia", "ShaftSpringDamper", "RotationalDamper", "TorqueSource", "TorqueInput",
            "SpeedSource", "SpeedInput", "RotationalFixed", "RotationalFree", "SpeedSensor", "AngleSensor",

@@ -101,3 +101,72 @@ def test_force_above_coulomb_level_accelerates_at_net_force(sim):
     a = (F - F_c) / m
     np.testing.assert_allclose(sol.der("mass.v"), a, rtol=1e-4)
     np.testing.assert_allclose(sol["mass.v"], a * sol.t, rtol=1e-3)
+
+
+def _cylinder_against_a_spring(friction):
+    """A 2000 mm^2 piston at 50 bar (10 kN) against a 1000 N/mm spring, 50 kg, 20 kN s/m."""
+    from pvgraph.components import Cylinder, LinearSpring, Mass, Orifice, PressureSource, Tank
+    c = Circuit("spring")
+    src, tank = c.add("src", PressureSource(p0="50 bar")), c.add("tank", Tank())
+    orf = c.add("orf", Orifice(A="5 mm^2"))
+    cyl = c.add("cyl", Cylinder(A_A="2000 mm^2", A_rod="1000 mm^2", stroke="200 mm",
+                                V_dead_A="20 cm^3", V_dead_B="20 cm^3"))
+    m = c.add("m", Mass(m="50 kg", b="20 kN s/m"))
+    spring = c.add("spring", LinearSpring(k="1000 N/mm"))
+    fr = c.add("fr", friction)
+    c.connect(src.port, orf.a)
+    c.connect(orf.b, cyl.A)
+    c.connect(cyl.B, tank.port)
+    c.connect(cyl.flange, m.flange, spring.flange, fr.flange)
+    return c
+
+
+def test_lugre_friction_holds_a_cylinder_where_coulomb_friction_first_balances():
+    """Coulomb friction of 1 kN: the rod stops where the net force first falls to F_c,
+    x = (p A - F_c) / k = 9.000 mm, and stays (the smooth law creeps on to the friction-free
+    10 mm over F_c / (k v_eps) = 10 s)."""
+    from pvgraph.components import LuGreFriction
+    from pvgraph.simulate import simulate
+    sol = simulate(_cylinder_against_a_spring(LuGreFriction(F_c="1 kN", sigma0=1e9,
+                                                            sigma1=4e5)), 20.0, rtol=1e-7)
+    x = sol["cyl.flange.x"]
+    # within the bristles' pre-sliding travel F_c / sigma0 = 1 um, then a creep of their
+    # relaxation, F_c / (sigma0 v_eps) = 100 s: 3 um over 18 s
+    assert sol.at("cyl.flange.x", 2.0) == pytest.approx(9.0e-3, abs=2e-6)
+    assert sol.final("cyl.flange.x") == pytest.approx(9.0e-3, abs=5e-6)
+    assert sol.final("fr.F") == pytest.approx(1e3, rel=1e-2)
+    assert np.max(x) < 9.0e-3 + 5e-6
+    creep = simulate(_cylinder_against_a_spring(Friction(F_c="1 kN")), 20.0, rtol=1e-7)
+    assert creep.final("cyl.flange.x") > 9.8e-3
+
+
+def test_lugre_friction_breaks_away_at_its_static_force():
+    """F_s = 80 N, F_c = 50 N on a 66 g spool, the force ramped up over 1 s: 70 N is held
+    (below breakaway); 100 N breaks it away near 80 N, and it slides at
+    (100 - 50) / b (v >> v_s: the Coulomb level)."""
+    from pvgraph.components import LuGreFriction, Ramp
+    from pvgraph.simulate import simulate
+
+    def pushed(force):
+        c = Circuit("pushed")
+        spool = c.add("spool", SpoolMass(m=0.066))
+        fr = c.add("fr", LuGreFriction(F_c=50.0, F_s=80.0, b=2000.0))
+        push = c.add("push", ForceInput())
+        c.connect(spool.flange, fr.flange, push.flange)
+        c.connect(c.add("f", Ramp(height=force, duration=1.0)).y, push.u)
+        return c
+    held = simulate(pushed(70.0), 1.5, rtol=1e-8)
+    assert abs(held.final("spool.v")) < 1e-7
+    assert held.final("fr.F") == pytest.approx(70.0, rel=1e-3)
+    # pre-sliding: the bristles carry it (sigma0 z = 70 N) after a micro-slip of a few
+    # bristle deflections (LuGre's, near breakaway): 33 um
+    assert held.final("fr.z") == pytest.approx(70.0 / 5e6, rel=1e-3)
+    assert abs(held.final("spool.flange.x")) < 5.0 * 80.0 / 5e6
+    slides = simulate(pushed(100.0), 1.5, rtol=1e-8)
+    assert slides.final("spool.v") == pytest.approx(50.0 / 2000.0, rel=1e-3)
+    t_away = slides.t[np.argmax(slides["spool.v"] > 1e-3)]
+    # the ramp passes 80 N at 0.8 s; at a finite loading rate LuGre breaks away a little
+    # below F_s (75 N at 100 N/s), well above the Coulomb level (0.5 s)
+    assert 0.7 < t_away < 0.81
+    with pytest.raises(ParameterError, match="F_s .* must not be below F_c"):
+        LuGreFriction(F_c=50.0, F_s=40.0)
