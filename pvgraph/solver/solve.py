@@ -322,7 +322,10 @@ def _why_many_steps(integ, var_names) -> str:
             f"(order {integ.kused} at the end), the step size is held by the local error of "
             f"{', '.join(map(repr, names))}. An algebraic variable that amplifies the error of "
             f"a state (it reads a state times a large gain) does this; leave it out of the "
-            f"error test (suppress_alg=True) or tighten atol of that state.")
+            f"error test (suppress_alg=True) or tighten atol of that state. So does a DAE of "
+            f"index two or more (an algebraic equation that fixes a differential variable, "
+            f"0 = y1 - sin t with y1' = y2): name the algebraic variables (algebraic=...) to "
+            f"have it checked, or reduce the index (pvgraph.dae.compile_dae).")
 
 
 def _apply_actions(fired, event_list, te, ye, ype, initialise, mode):

@@ -286,3 +286,18 @@ def test_a_sparse_jacobian_without_a_pattern_stays_sparse():
     lam = 4 * np.sin(np.pi / (2 * (n + 1))) ** 2
     np.testing.assert_allclose(a.y[-1], y0 * np.exp(-lam), rtol=1e-6)
     np.testing.assert_allclose(a.y[-1], b.y[-1], rtol=1e-6)
+
+
+def test_residual_calls_are_counted_exactly_with_a_detected_pattern():
+    """n = 120 without a Jacobian or a pattern: the pattern is detected (2 n + 1 calls) and
+    every call of the residual is in stats['nre']."""
+    n = 120
+    k = np.linspace(1.0, 3.0, n)
+    calls = [0]
+
+    def residual(t, y, yp):
+        calls[0] += 1
+        return yp + k * y
+    res = solve_dae(residual, (0.0, 1.0), np.ones(n), -k * np.ones(n), rtol=1e-6)
+    assert res.stats["nre"] == calls[0]
+    np.testing.assert_allclose(res.y[-1], np.exp(-k), rtol=1e-4)
