@@ -111,7 +111,11 @@ class DAEResult:
         Times of ``events``.
     stats : dict
         ``nsteps``, ``nre`` (residual calls, including finite-difference Jacobians and
-        initialisation), ``nje``, ``nlu``, ``netf``, ``ncfn``, ``nni``, ``nroot``.
+        initialisation), ``nje``, ``nlu``, ``netf``, ``ncfn``, ``nni``, ``nroot``; and
+        ``nrescue`` where the built-in (Python) step went on past a corrector that failed
+        down to a vanishing step (an algebraic pressure between two closed valves with no
+        volume: the algebraic variables solved with a line search a little beyond the last
+        step, the run restarted there; see ``solve._rescue``).
     success : bool
         True when the end of the interval or a terminal event was reached.
     message : str

@@ -328,6 +328,49 @@ def _why_many_steps(integ, var_names) -> str:
             f"have it checked, or reduce the index (pvgraph.dae.compile_dae).")
 
 
+MAX_RESCUES = 200          # restarts past a failed corrector in one run (see _rescue)
+RESCUE_TRIES = 4           # ... each tried at 1/4, 1/40, 1/400, 1/4000 of the last step
+
+
+def _rescue(exc, integ, initialise, t_end, rescue, tracker):
+    """``(y, y', t, t_last)`` a quarter of the last step beyond the last accepted one (the
+    history's prediction for the states, the algebraic variables solved with a line search;
+    nearer where none is found there), or
+    ``exc`` raised where that does not apply: not a corrector failure, too many rescues, an
+    event crossing within it, or no consistent values there."""
+    from .ida import NEWTON_FAIL
+    fail = getattr(integ, "_fail", None)
+    if rescue["count"] >= MAX_RESCUES or fail is None or fail[0] != NEWTON_FAIL or \
+            "corrector failures" not in str(exc):
+        raise exc
+    t_r = integ.tn
+    delta = 0.25 * abs(integ.hused) if integ.hused else rescue["delta"]
+    delta = min(delta, t_end - t_r)
+    if not delta > 16.0 * UROUND * max(abs(t_r), 1.0):
+        raise exc
+    for _ in range(RESCUE_TRIES):     # nearer to the last step where none is found
+        t_new = t_r + delta
+        y_p, yp_p = integ.interpolate(t_new)
+        try:
+            y_new, yp_new = initialise(t_new, np.array(y_p, dtype=float),
+                                       np.array(yp_p, dtype=float), "algebraic")
+            break
+        except (InitializationError, SolverError):
+            delta *= 0.1
+            if not delta > 16.0 * UROUND * max(abs(t_r), 1.0):
+                raise exc from None
+    else:
+        raise exc
+    if tracker is not None and tracker.crossings(t_r, t_new, tracker.evaluate(t_new, y_new,
+                                                                              yp_new),
+                                                 integ.interpolate):
+        raise exc
+    rescue["count"] += 1
+    rescue["delta"] = delta
+    integ.nrescue = getattr(integ, "nrescue", 0) + 1
+    return y_new, yp_new, t_new, t_r
+
+
 def _apply_actions(fired, event_list, te, ye, ype, initialise, mode):
     """The state after the actions of the events ``fired`` at ``te`` (in declaration order),
     made consistent."""
@@ -433,6 +476,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     restart_mode = calc_initial if calc_initial is not None else "algebraic"
     steps_at_start = integ.nst
     end_state = None            # state after an action exactly at t_end
+    rescue = {"count": 0, "delta": 0.0}     # restarts past a failed corrector (see _rescue)
 
     # the C step can run the loop itself between steps whose events need the Python code
     run = (_c_run(integ, n, t_end, t_eval, steps_at_start + max_steps)
@@ -467,7 +511,35 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
                 continue
             # ADV_EVENTS: a step was taken; its events, outputs and end test follow here
         else:
-            integ.step()
+            try:
+                integ.step()
+            except SolverError as exc:
+                # the corrector failed down to a vanishing step: an algebraic variable whose
+                # equation turns from flat to steep (a valve opening from its leak, with no
+                # volume on the node) sends Newton from one side far onto the other. Go on a
+                # little beyond the last step with the states predicted and the algebraic
+                # variables solved with a line search (as at a restart), then restart there
+                got = _rescue(exc, integ, initialise, t_end, rescue, tracker)
+                y_new, yp_new, t_new, _ = got
+                if t_eval is not None:
+                    while i_eval < t_eval.size and t_eval[i_eval] <= t_new:
+                        yv, ypv = ((y_new, yp_new) if t_eval[i_eval] == t_new
+                                   else integ.interpolate(t_eval[i_eval]))
+                        ts.append(t_eval[i_eval])
+                        ys.append(np.array(yv, dtype=float))
+                        yps.append(np.array(ypv, dtype=float))
+                        i_eval += 1
+                else:
+                    ts.append(t_new)
+                    ys.append(y_new.copy())
+                    yps.append(yp_new.copy())
+                if tracker is not None:
+                    tracker.reset(t_new, y_new, yp_new)
+                if t_end - t_new <= END_FUZZ * UROUND * (abs(t_new) + abs(t_new - got[3])):
+                    end_state = (y_new, yp_new)
+                    break
+                integ.reinit(t_new, y_new, yp_new, t_end)
+                continue
         t_old, tn = integ.t_old, integ.tn
         if dense is not None:
             dense.append(t_old, tn, integ.kused, integ.psi, integ.phi)
@@ -578,6 +650,8 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         "nni": integ.nni,
         "nroot": tracker.nroot if tracker is not None else 0,
     }
+    if rescue["count"]:
+        stats["nrescue"] = rescue["count"]
     return DAEResult(
         t=np.asarray(ts, dtype=float),
         y=np.array(ys, dtype=float) if ys else np.empty((0, n)),

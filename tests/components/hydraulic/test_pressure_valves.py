@@ -185,10 +185,12 @@ def test_bad_parameters_name_the_field(make, field):
 
 def test_dynamic_relief_fed_straight_is_told_to_take_a_volume():
     """A poppet with mass straight on a flow source, no volume: the inlet pressure is
-    algebraic and the run stalls as the poppet lifts; the message names the pressure and the
-    cure. With a 0.1 L volume it runs to the relief's pressure."""
+    algebraic, the source's flow through the closed poppet's leak at the start, 1e18 Pa (told
+    with a PlausibilityWarning); the corrector fails as the poppet lifts and the run goes on
+    past it (the pressure solved with a line search a step further) to the relief's pressure,
+    within 1 % of the circuit with a 0.1 L volume."""
     from pvgraph.components.hydraulic import FlowSource, VolumeNode
-    from pvgraph.errors import SolverError
+    from pvgraph.errors import PlausibilityWarning
 
     def build(volume):
         c = Circuit("s")
@@ -201,7 +203,9 @@ def test_dynamic_relief_fed_straight_is_told_to_take_a_volume():
         c.connect("src.port", "v.P", *(["node.port"] if volume else []))
         c.connect("v.T", "tank.port")
         return c
-    with pytest.raises(SolverError, match=r"'v.P.p' has no volume on its node .* VolumeNode"):
-        simulate(build(False), 0.01)
+    with pytest.warns(PlausibilityWarning, match=r"v.P.p .* reaches 1.\d+e\+13 bar"):
+        stiff = simulate(build(False), 0.5)
+    assert stiff.stats["nrescue"] >= 1
     sol = simulate(build(True), 0.5)
     assert bar(150) < sol.final("v.P.p") < bar(170)
+    assert stiff.final("v.P.p") == pytest.approx(sol.final("v.P.p"), rel=0.01)
