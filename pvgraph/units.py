@@ -476,7 +476,9 @@ def declared_unit(description: str | None) -> str | None:
 #: SI unit -> (display unit, factor: SI value / factor = display value)
 DISPLAY_UNITS = {"Pa": ("bar", BAR), "m^3/s": ("L/min", LPM), "m": ("mm", MM),
                  "m^3": ("L", LITRE), "m^2": ("mm^2", MM2), "m/s": ("mm/s", MM),
-                 "m^3/(s Pa)": ("L/(min bar)", LPM / BAR)}
+                 "m^3/(s Pa)": ("L/(min bar)", LPM / BAR),
+                 "rad/s": ("rpm", 2.0 * math.pi / 60.0),
+                 "m^3/rad": ("cm^3/rev", 1e-6 / (2.0 * math.pi))}
 
 
 def display(value, unit: str, si: bool = False):

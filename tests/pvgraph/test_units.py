@@ -262,3 +262,9 @@ def test_a_unit_in_another_case_or_misspelt_is_refused_with_the_close_ones(text,
 
 def test_an_angle_per_turn_counts_the_angle():
     assert angle_power("cm^3/turn") == -1 and angle_power("degrees") == 1
+
+
+def test_shaft_speeds_and_displacements_are_shown_in_rpm_and_cm3_per_rev():
+    assert display(2.0 * math.pi * 1000.0 / 60.0, "rad/s") == pytest.approx((1000.0, "rpm"))
+    assert display(28e-6 / (2.0 * math.pi), "m^3/rad") == pytest.approx((28.0, "cm^3/rev"))
+    assert display(1.0, "rad/s", si=True) == (1.0, "rad/s")
