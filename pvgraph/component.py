@@ -169,9 +169,16 @@ def _field_unit(cls, name) -> tuple[bool, str | None]:
     if key not in _FIELD_UNITS:
         from .units import declared_unit
         info = cls.model_fields.get(name)
-        _FIELD_UNITS[key] = (info is not None and _takes_float(info.annotation),
-                             declared_unit(info.description) if info is not None else None)
+        unit = declared_unit(info.description) if info is not None else None
+        if unit is None and info is not None and "[unit of " in (info.description or ""):
+            unit = SIGNAL_UNIT      # a signal's value: any quantity, in SI
+        _FIELD_UNITS[key] = (info is not None and _takes_float(info.annotation), unit)
     return _FIELD_UNITS[key]
+
+
+#: the unit of a field in a signal's units (``[unit of y]``): signals carry SI values, so a
+#: quantity of any dimension is taken in SI (``Step(height="100 bar")`` is 1e7)
+SIGNAL_UNIT = "SI of the signal"
 
 
 #: [-] magnitudes outside this range overflow or underflow in the compiled equations
@@ -200,8 +207,12 @@ def _param_number(value, unit, name):
         if unit is None and not (isinstance(value, str) and _is_plain_number(value)):
             raise ValueError(f"{value!r}: {name} declares no unit to convert to; give a plain "
                              f"number")
-        from .units import to_unit
-        value = to_unit(value, unit or "1", name)
+        if unit == SIGNAL_UNIT:
+            from .units import to_si
+            value = to_si(value, name)
+        else:
+            from .units import to_unit
+            value = to_unit(value, unit or "1", name)
     if isinstance(value, (int, float)) and math.isfinite(value) and value != 0 and \
             not _PARAM_TINY <= abs(value) <= _PARAM_HUGE:
         raise ValueError(f"{value!r} is outside the magnitudes a model can compute with "

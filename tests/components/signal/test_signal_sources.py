@@ -118,3 +118,14 @@ def test_jacobian_matches_finite_differences(dae, source):
     system = _through_lag(source()).compile()
     for t in (0.05, 0.3, 0.7):
         dae.check_jacobian(system, t=t, values={"lag.y": 0.3}, ders={"lag.y": 1.0})
+
+
+def test_a_signal_value_given_with_a_unit_is_taken_in_si():
+    """Signals carry SI values: a set point of "100 bar" is 1e7, "20 L/min" 3.33e-4 m^3/s, a
+    gain of "2 bar/mm" 2e8 Pa/m; a word that is no unit is refused by name."""
+    from pvgraph.components import Gain
+    assert Step(height="100 bar", t_step="100 ms").params.height == pytest.approx(1e7)
+    assert Constant(k="20 L/min").params.k == pytest.approx(20.0 / 60000.0)
+    assert Gain(k="2 bar/mm").params.k == pytest.approx(2e8)
+    with pytest.raises(ParameterError, match=r"k = '3 furlong'.*unknown unit 'furlong'"):
+        Constant(k="3 furlong")
