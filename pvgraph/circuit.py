@@ -140,8 +140,46 @@ class Circuit:
         self._exposed: dict[str, tuple[PortRef, str]] = {}
         self._name: str | None = None
         self._parent: Circuit | None = None
+        self._fluid: dict | None = None
 
     # building ----------------------------------------------------------------------------------
+    def use_fluid(self, fluid) -> "Circuit":
+        """Give every part of this circuit (and of its sub-circuits, now and added later) the
+        properties of ``fluid`` it takes and was not given (a Simscape fluid block):
+        ``c.use_fluid(Fluid(rho=1000, nu="1 cSt", beta="22000 bar"))``.
+
+        ``fluid`` is a parameter model (``pvgraph.components.Fluid``) or a mapping of field
+        names to values; a part takes the fields its parameter model declares under those
+        names (``rho``, ``nu``, ``beta``, ``air``, ...). A value given to the part itself wins;
+        a sub-circuit with a fluid of its own keeps it. Returns the circuit.
+        """
+        if isinstance(fluid, BaseModel):
+            values = {k: getattr(fluid, k) for k in type(fluid).model_fields}
+        elif isinstance(fluid, Mapping):
+            values = dict(fluid)
+        else:
+            raise CircuitError(f"circuit {self.path!r}: use_fluid takes a fluid (Fluid(...)) or "
+                               f"a mapping of its properties, got {type(fluid).__name__}")
+        self._fluid = values
+        self._apply_fluid(values)
+        return self
+
+    def _apply_fluid(self, values):
+        for name, child in self._components.items():
+            if isinstance(child, Circuit):
+                if child._fluid is None:
+                    child._apply_fluid(values)
+            else:
+                _fluid_into(child, values, f"{self.path}.{name}" if self._parent else name)
+
+    def _inherited_fluid(self):
+        node = self
+        while node is not None:
+            if node._fluid is not None:
+                return node._fluid
+            node = node._parent
+        return None
+
     def add(self, name: str, component):
         """Add ``component`` under ``name`` and return it."""
         if not isinstance(name, str) or not _NAME.fullmatch(name):
@@ -167,6 +205,13 @@ class Circuit:
         component._name = name
         component._parent = self
         self._components[name] = component
+        fluid = self._inherited_fluid()
+        if fluid is not None:
+            if isinstance(component, Circuit):
+                if component._fluid is None:
+                    component._apply_fluid(fluid)
+            else:
+                _fluid_into(component, fluid, name)
         return component
 
     def connect(self, *ports) -> None:
@@ -874,6 +919,28 @@ def _symbols_read(root) -> set:
         elif node.op == "sym" or node.op == "der":
             found.add((node.op, node.value))
     return found
+
+
+def _fluid_into(comp, values, where):
+    """Give ``comp`` the fluid properties of ``values`` its parameter model takes and its
+    builder did not give (``model_fields_set``), validated by the model; the fields stay
+    "not given", so another fluid replaces them."""
+    p = comp.params
+    fields = type(p).model_fields
+    given = p.model_fields_set
+    update = {k: v for k, v in values.items() if k in fields and k not in given}
+    if not update:
+        return
+    from pydantic import ValidationError
+
+    from .component import _describe_validation
+    try:
+        new = type(p)(**{k: getattr(p, k) for k in given}, **update)
+    except ValidationError as exc:
+        raise ParameterError(f"{where}: the circuit's fluid does not fit: " + _describe_validation(
+            type(comp).__name__, exc, list(fields), update, type(p))) from None
+    object.__setattr__(new, "__pydantic_fields_set__", set(given))
+    comp.params = new
 
 
 def _no_reference_message(circuit: Circuit, islands: list[dict]) -> str:

@@ -89,3 +89,44 @@ def test_jacobian_near_the_vapour_pressure():
     c.connect("vol.port", "orf.a")
     c.connect("orf.b", "tank.port")
     assert jacobian_fd_error(c.compile()) < 1e-5
+
+
+def _orifice_circuit(fluid=None, **orifice):
+    from pvgraph import Circuit
+    from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
+    c = Circuit("demo")
+    if fluid is not None:
+        c.use_fluid(fluid)
+    c.add("pump", FlowSource(Q="6 L/min"))
+    c.add("node", VolumeNode(V="0.5 L"))
+    c.add("o", Orifice(A="2 mm^2", **orifice))
+    c.add("tank", Tank())
+    c.connect("pump.port", "node.port", "o.a")
+    c.connect("o.b", "tank.port")
+    return c
+
+
+def test_a_circuit_fluid_reaches_every_part_that_was_not_given_its_own():
+    """use_fluid(Fluid(rho=1000)): the orifice's drop rho/2 (Q/(Cd A))^2 grows by 1000/870;
+    a part given its own density keeps it; a mapping works too, parts added later and parts
+    of sub-circuits take it; a value the part refuses is told with the part's name."""
+    from pvgraph import Circuit, ParameterError
+    from pvgraph.analysis import steady_state
+    from pvgraph.components import Fluid, Orifice
+    base = steady_state(_orifice_circuit().compile())["node.port.p"]
+    water = _orifice_circuit(Fluid(rho=1000.0, beta="22000 bar"))
+    assert steady_state(water.compile())["node.port.p"] == pytest.approx(base * 1000.0 / 870.0,
+                                                                         rel=1e-9)
+    assert water["node"].params.beta == pytest.approx(2.2e9)
+    own = _orifice_circuit(Fluid(rho=1000.0), rho=870.0)
+    assert steady_state(own.compile())["node.port.p"] == pytest.approx(base, rel=1e-12)
+    again = _orifice_circuit(Fluid(rho=1000.0)).use_fluid({"rho": 900.0})
+    assert again["o"].params.rho == 900.0          # a later fluid replaces the earlier one
+    outer = Circuit("outer").use_fluid({"rho": 950.0})
+    inner = Circuit("inner")
+    inner.add("o", Orifice(A="1 mm^2"))
+    outer.add("sub", inner)
+    assert inner["o"].params.rho == 950.0
+    with pytest.raises(ParameterError, match=r"(?s)o: the circuit.s fluid does not fit.*Orifice.*"
+                                             r"rho = 5.0"):
+        _orifice_circuit().use_fluid({"rho": 5.0})
