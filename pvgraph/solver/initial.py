@@ -69,9 +69,24 @@ def start_values(fun, t0, y0, yp0, mode, algebraic, alg_given, jacobian, rtol, a
             return y0.copy(), yp0.copy()
         mask = np.zeros(y0.size, dtype=bool)
         mask[derivative_free_columns(jacobian, t0, y0, yp0, r)] = True
-    return consistent_initial_conditions(fun, t0, y0, yp0, mode, mask, jacobian, rtol, atol,
-                                         t_span_length, var_names, lu_kind=lu_kind,
-                                         lu_pattern=lu_pattern, lu=lu)
+    try:
+        return consistent_initial_conditions(fun, t0, y0, yp0, mode, mask, jacobian, rtol,
+                                             atol, t_span_length, var_names, lu_kind=lu_kind,
+                                             lu_pattern=lu_pattern, lu=lu)
+    except InitializationError as exc:
+        if "singular" not in str(exc):
+            raise
+        # a DAE of index two (0 = y1 - sin t with y1' = y2): no Newton matrix of the
+        # algebraic variables is regular, but a given start that satisfies F is kept as it
+        # is, as SUNDIALS IDA does without IDACalcIC (the integration then needs the
+        # algebraic variables out of the error test, suppress_alg=True)
+        r = np.asarray(fun(t0, y0, yp0), dtype=float)
+        dist = consistency_distance(fun, t0, y0, yp0, jacobian, lu, h0, rtol, atol, r)[0]
+        if dist is not None and dist <= AS_IS_DISTANCE:
+            return y0.copy(), yp0.copy()
+        raise InitializationError(
+            f"{exc} A DAE of index two starts only from values that satisfy it (hidden "
+            f"constraints included, y' too): give such y0 and yp0 and they are kept.") from None
 
 
 def derivative_free_columns(jacobian, t, y, yp, r):

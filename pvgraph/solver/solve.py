@@ -66,6 +66,11 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
               nonnegative=None, newton_iterate_retry=None, c_step=None, linear_solver=None):
     """Solve the implicit DAE F(t, y, y') = 0 of index at most one.
 
+    A semi-explicit DAE of index two (Hessenberg form: a constraint on differential
+    variables, 0 = x u + y v for a pendulum's velocities, with its multiplier algebraic) runs
+    too from a start that satisfies it, with its algebraic variables named (``algebraic=``)
+    and left out of the error test (``suppress_alg=True``), as SUNDIALS IDA runs it.
+
     Parameters
     ----------
     residual : callable
