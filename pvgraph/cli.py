@@ -549,7 +549,7 @@ def run_sweep(args, run, cases, units, check):
     try:
         result = sweep(run, cases, backend=backend, workers=args.workers, client=args.scheduler,
                        progress=True, units=units, out=args.out, resume=args.resume,
-                       timeout=args.timeout, check=check)
+                       overwrite=args.overwrite, timeout=args.timeout, check=check)
     except SweepInterrupted as exc:
         done = exc.result
         print(f"\ninterrupted: {len(done.records)} of {done.n_cases} cases finished and kept "
@@ -875,6 +875,9 @@ def _add_sweep_backend(w) -> None:
                         "sweep.json (default: %(default)s)")
     w.add_argument("--resume", action="store_true",
                    help="keep the finished cases recorded in OUT/cases.jsonl and run the rest")
+    w.add_argument("--overwrite", action="store_true",
+                   help="replace the record of an earlier sweep in OUT (without --resume or "
+                        "--overwrite such a folder is refused)")
     w.add_argument("--timeout", type=float, metavar="SECONDS",
                    help="stop a case after this wall time and record it as timed out. Dask: "
                         "on the local cluster the sweep starts, the worker running a late "

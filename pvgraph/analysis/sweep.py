@@ -725,7 +725,7 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
           backend: str = "process", workers: int | None = None, client=None,
           progress: bool | Callable[[int, int, int], None] | None = None, out=None,
           units: Mapping[str, str] | None = None, resume: bool = False,
-          timeout: float | None = None,
+          overwrite: bool = False, timeout: float | None = None,
           check: Callable[[dict], None] | None = None) -> SweepResult:
     """Run ``run(**case)`` for every case and collect the outputs, in case order.
 
@@ -758,6 +758,9 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
     resume : bool
         Keep the successful cases recorded in ``out/cases.jsonl`` (they must be the same cases)
         and run only the others.
+    overwrite : bool
+        Replace the record of an earlier sweep in ``out`` (without ``resume`` or
+        ``overwrite`` a folder holding one is refused: nothing recorded is lost unasked).
     timeout : float, optional
         Wall-time limit of one case [s]; a case over it is recorded with status ``"timeout"``
         and the sweep goes on (how each backend stops it: see the module docstring).
@@ -800,6 +803,15 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
                              f"system); use backend='dask'")
     if resume and out is None:
         raise SweepError("resume=True needs out= (the folder holding cases.jsonl)")
+    if resume and overwrite:
+        raise SweepError("resume=True keeps the record in out=, overwrite=True replaces it: "
+                         "give one of them")
+    if out is not None and not resume and not overwrite and \
+            os.path.exists(os.path.join(os.fspath(out), LOG_NAME)):
+        raise SweepError(f"{os.path.join(os.fspath(out), LOG_NAME)} holds the record of an "
+                         f"earlier sweep ({_recorded(os.path.join(os.fspath(out), LOG_NAME))}): "
+                         f"resume it (resume=True, --resume), replace it (overwrite=True, "
+                         f"--overwrite) or give another folder")
     if units is not None:
         if not isinstance(units, Mapping):
             raise SweepError(f"units must be a mapping {{output name: unit}}, e.g. "
@@ -915,6 +927,17 @@ def _from_log(d: dict) -> CaseResult:
     return CaseResult(int(d["index"]), dict(d["params"]), outs, d["status"],
                       float(d.get("wall_time") or 0.0), err.get("type"), err.get("message"),
                       err.get("traceback"), list(d.get("warnings") or []))
+
+
+def _recorded(path) -> str:
+    """``"12 cases, 5 finished"``: what the sweep record at ``path`` holds, for messages."""
+    try:
+        with open(path) as f:
+            lines = f.read().splitlines()
+        n = json.loads(lines[0]).get("n_cases")
+        return f"{n} case{'s' if n != 1 else ''}, {len(lines) - 1} finished"
+    except (OSError, IndexError, ValueError, AttributeError):
+        return "unreadable"
 
 
 def _open_log(path, cases, param_names, units, kept):

@@ -192,3 +192,20 @@ def test_ctrl_c_in_a_dask_sweep_keeps_the_finished_cases(tmp_path):
     assert sorted(seen) == sorted(r.index for r in partial)
     with open(tmp_path / "sweep.json") as f:
         assert json.load(f)["n_finished"] == 2
+
+
+def test_a_folder_holding_an_earlier_sweep_is_not_overwritten_unasked(tmp_path):
+    """A second sweep into the folder of a first one is refused, naming what the record holds
+    and the two ways on; overwrite=True replaces it, resume=True keeps it."""
+    first = sweep(square, grid({"x": [1.0, 2.0, 3.0]}), backend="serial", out=tmp_path)
+    assert len(first) == 3 and len(_lines(tmp_path / "cases.jsonl")) == 4
+    with pytest.raises(SweepError, match=r"cases.jsonl holds the record of an earlier sweep "
+                                         r"\(3 cases, 3 finished\).*resume.*overwrite"):
+        sweep(square, grid({"x": [5.0]}), backend="serial", out=tmp_path)
+    assert len(_lines(tmp_path / "cases.jsonl")) == 4         # nothing lost
+    again = sweep(square, grid({"x": [1.0, 2.0, 3.0]}), backend="serial", out=tmp_path, resume=True)
+    assert [r.outputs["y"] for r in again] == [1.0, 4.0, 9.0]
+    other = sweep(square, grid({"x": [5.0]}), backend="serial", out=tmp_path, overwrite=True)
+    assert other[0].outputs["y"] == 25.0 and len(_lines(tmp_path / "cases.jsonl")) == 2
+    with pytest.raises(SweepError, match="give one of them"):
+        sweep(square, grid({"x": [5.0]}), backend="serial", out=tmp_path, overwrite=True, resume=True)
