@@ -280,8 +280,13 @@ def check_names(system, names, what: str = "--var") -> list[str]:
 # simulate, vars, graph, export, components, circuits
 
 def cmd_simulate(args) -> int:
-    from .simulate import simulate
+    from .simulate import _solver_function, simulate
 
+    if args.solver != "pvgraph":
+        try:
+            _solver_function(args.solver)   # an optional backend: checked before compiling
+        except PvgraphError as exc:
+            raise PvgraphError(f"--solver {args.solver}: {exc}") from None
     target = _target(args)
     circuit = target.circuit()
     system = circuit.compile()
@@ -904,7 +909,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_target(s)
     s.add_argument("--t-end", type=float, default=None,
                    help=f"end time [s] (default: the circuit's, else {DEFAULT_T_END:g})")
-    s.add_argument("--solver", default="pvgraph", choices=["pvgraph", "ida"])
+    s.add_argument("--solver", default="pvgraph", choices=["pvgraph", "ida"],
+                   help="the built-in IDA-style solver (default) or SUNDIALS IDA through "
+                        "scikit-sundae (pip install \"pvgraph[sundials]\")")
     s.add_argument("--rtol", type=_tolerance, default=1e-5,
                    help="relative tolerance (default: %(default)s)")
     s.add_argument("--var", action="append", help="variable to report (repeatable; names: "

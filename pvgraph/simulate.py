@@ -305,6 +305,7 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         raise PvgraphError(f"t_end ({t_end!r}) must be finite and greater than t_start "
                            f"({t_start!r})")
     _check_options(options, solver)
+    solve = _solver_function(solver)        # an optional backend missing: told before compiling
     rtol = _tolerance(rtol, "rtol")
     if atol is not None:
         atol = _tolerance(atol, "atol", per_variable=True)
@@ -356,7 +357,6 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
                   jac=system.solver_jacobian(), jac_sparsity=system.jac_sparsity,
                   events=system._run_events() or None, t_eval=t_eval, max_step=max_step,
                   calc_initial=calc_initial, var_names=system.names, **options)
-    solve = _solver_function(solver)
     if not isinstance(switch_states, (bool, np.bool_)):
         raise PvgraphError(f"simulate: switch_states takes True or False, got {switch_states!r}")
     switches = []
@@ -515,6 +515,10 @@ def _solver_function(solver):
     if solver == "pvgraph":
         from .solver import solve_dae
         return solve_dae
+    import importlib.util
+    if importlib.util.find_spec("sksundae") is None:
+        raise PvgraphError("solver='ida' needs SUNDIALS through scikit-sundae, which is not "
+                           "installed: pip install \"pvgraph[sundials]\" (or scikit-sundae)")
     from .solver import solve_dae_sundials
     return solve_dae_sundials
 

@@ -857,3 +857,20 @@ def test_a_module_target_is_found_in_the_working_directory(rig_file, tmp_path, m
     assert main(["simulate", "my_rig:build", "--t-end", "1", "--var", "node.port.p"]) == 0
     p, _ = _final_values(capsys.readouterr().out)["node.port.p"]
     assert p == pytest.approx(_p_steady() / 1e5, rel=2e-3)
+
+
+def test_the_ida_solver_without_scikit_sundae_is_told_before_compiling(rig_file, monkeypatch,
+                                                                        capsys):
+    """--solver ida where scikit-sundae is not installed: one line naming the extra, exit 2,
+    before the circuit is built (simulate() says the same)."""
+    import importlib.util
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "sksundae" else real(name, *a))
+    built = []
+    monkeypatch.setattr("pvgraph.cli._target", lambda args: built.append(1))
+    assert main(["simulate", f"{rig_file}:build", "--solver", "ida"]) == 2
+    err = capsys.readouterr().err
+    assert "--solver ida: solver='ida' needs SUNDIALS through scikit-sundae" in err
+    assert 'pip install "pvgraph[sundials]"' in err and "Traceback" not in err
+    assert not built

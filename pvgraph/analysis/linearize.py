@@ -169,7 +169,7 @@ class LinearModel:
 
         python-control forbids '.' in signal names, so dots become '_' there.
         """
-        import control
+        control = _control()
         if not self.input_names or not self.output_names:
             raise PvgraphError(f"to_control: the model has {len(self.input_names)} inputs and "
                                f"{len(self.output_names)} outputs; python-control needs at "
@@ -182,7 +182,7 @@ class LinearModel:
 
     def siso(self, output=0, input=0):
         """The path from ``input`` to ``output`` as a python-control ``StateSpace``."""
-        import control
+        control = _control()
         i = self._idx(output, self.output_names, "output")
         j = self._idx(input, self.input_names, "input")
         return control.ss(self.A, self.B[:, j:j + 1], self.C[i:i + 1], self.D[i:i + 1, j:j + 1])
@@ -196,7 +196,7 @@ class LinearModel:
         to 1e8 rad/s, whose transfer-function polynomials overflow ``control.margin``'s
         default polynomial method.
         """
-        import control
+        control = _control()
         if not (isinstance(points_per_decade, (int, np.integer)) and points_per_decade >= 1):
             raise ValueError(f"points_per_decade must be a positive integer, got "
                              f"{points_per_decade!r}")
@@ -233,7 +233,7 @@ class LinearModel:
         steps, at most 500000). A mode whose share of the response is below 1e-4 of its
         largest (a slow leakage pole all but cancelled by a zero) sets neither.
         """
-        import control
+        control = _control()
         known = ("timepts", "timepts_num", "final_output", "params", "SettlingTimeThreshold",
                  "RiseTimeLimits")
         unknown = [k for k in options if k not in known]
@@ -291,7 +291,7 @@ class LinearModel:
     def root_locus(self, output=0, input=0, gains=None):
         """``(gains, loci)``: closed-loop poles of ``gain * (input -> output)`` under negative
         unity feedback, one row per gain (``control.root_locus_map``)."""
-        import control
+        control = _control()
         if gains is not None:
             try:
                 gains = np.atleast_1d(np.asarray(gains, dtype=float))
@@ -325,6 +325,16 @@ class LinearModel:
         sys = signal.StateSpace(self.A, self.B[:, j:j + 1], self.C[i:i + 1], self.D[i:i + 1, j:j + 1])
         _, yout, _ = signal.lsim(sys, np.full(len(t), amplitude), t)
         return np.asarray(yout).reshape(-1)
+
+
+def _control():
+    """python-control, or a PvgraphError naming the extra that installs it."""
+    try:
+        import control
+    except ImportError:
+        raise PvgraphError("this needs python-control, which is not installed: pip install "
+                           "\"pvgraph[control]\" (or control)") from None
+    return control
 
 
 def _dc_gain_singular(A, B, C, D, state_names):

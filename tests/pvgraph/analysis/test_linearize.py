@@ -637,3 +637,22 @@ def test_an_input_given_as_a_quantity_is_checked_against_its_parameter():
         linearize_circuit(build, {"orifice.A": "2 mm"}, ["node.port.p"])
     with pytest.raises(ParameterError, match="A = '2 bar' is a pressure, but A is an area"):
         linearize_circuit(build, {"orifice.A": "2 bar"}, ["node.port.p"])
+
+
+def test_python_control_methods_name_the_extra_where_it_is_missing(monkeypatch):
+    """margins(), step_info(), root_locus() and to_control() use python-control: without it,
+    a PvgraphError names the extra, not a bare ModuleNotFoundError."""
+    import builtins
+    from pvgraph.errors import PvgraphError
+    lm = _lm([[-1.0]], [[1.0]], [[1.0]])
+    real = builtins.__import__
+
+    def no_control(name, *args, **kwargs):
+        if name == "control" or name.startswith("control."):
+            raise ImportError("No module named 'control'")
+        return real(name, *args, **kwargs)
+    monkeypatch.setattr(builtins, "__import__", no_control)
+    for call in (lm.margins, lm.step_info, lm.root_locus, lm.to_control):
+        with pytest.raises(PvgraphError, match=r'pip install "pvgraph\[control\]"'):
+            call()
+    assert lm.poles() == pytest.approx([-1.0])        # the rest needs nothing
