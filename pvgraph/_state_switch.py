@@ -25,7 +25,7 @@ import warnings
 import numpy as np
 
 from .errors import SolverError, StructureError
-from .index_reduction import EVENT_OWNER
+from .index_reduction import EVENT_OWNER, SWITCH_RATIO
 
 #: switches in one run before it stops (a choice flipping back and forth without progress)
 MAX_SWITCHES = 1000
@@ -140,6 +140,37 @@ def choice_point(system, y, yp) -> dict:
 def states_of(system) -> tuple:
     reduction = system.index_reduction
     return tuple(sorted(n for n, _ in reduction.states)) if reduction is not None else ()
+
+
+#: at the start of a run, the pivots' ratios to their values where the states were chosen
+#: outside this range choose them again there (a start elsewhere, other parameter values)
+REBASE_RANGE = (0.5, 2.0)
+
+
+def rebased(system, t, y, yp):
+    """``system`` compiled again with the states chosen at ``(t, y, yp)``, where a pivot's
+    ratio to its value at the compile's choice is outside ``REBASE_RANGE`` (its watch would
+    be relative to another configuration: of the other sign it never fires); else None."""
+    names = [f"{path}.{spec.name}" for path, spec in system.event_specs]
+    try:
+        values = np.asarray(system.event_values(t, np.asarray(y, float), np.asarray(yp, float)),
+                            dtype=float)
+    except Exception:   # noqa: BLE001  (an event that cannot be evaluated there: as before)
+        return None
+    lo, hi = REBASE_RANGE
+    off = [name for name, g in zip(names, values)
+           if name.startswith(EVENT_OWNER + ".switch_") and
+           not lo <= g + SWITCH_RATIO <= hi]
+    if not off:
+        return None
+    point = choice_point(system, y, yp)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")     # told when the circuit was first compiled
+            new = system._recompiled({}, choice_point=point)
+    except StructureError:
+        return None
+    return new.use_backend(system.backend) if new.backend != system.backend else new
 
 
 def switched(system, rec):

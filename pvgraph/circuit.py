@@ -949,5 +949,7 @@ def _no_reference_message(circuit: Circuit, islands: list[dict]) -> str:
         names = ", ".join(sorted(i["components"])[:6])
         parts.append(f"the hydraulic network of {names} has no pressure reference: nothing "
                      f"fixes its pressure level, so every pressure in it is undetermined. "
-                     f"Connect a Tank (or a PressureSource) to one of its nodes.")
+                     f"Connect a Tank (or a PressureSource) to one of its nodes; where it lies "
+                     f"between pumps or flow sources (which fix flows, not a pressure), give it "
+                     f"a VolumeNode and a relief valve to tank instead.")
     return f"circuit {circuit.name!r}: " + " ".join(parts)

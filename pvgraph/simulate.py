@@ -362,11 +362,12 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     switches = []
     if kwargs["events"]:
         from . import _state_switch
-        switching = switch_states and getattr(system, "_circuit", None) is not None and \
+        watched = getattr(system, "_circuit", None) is not None and \
             bool(_state_switch.watch_names(kwargs["events"]))
+        switching = switch_states and watched
         kwargs["events"] = _state_switch.for_run(kwargs["events"], switching) or None
-        if switching:
-            solve = _switching(solve, system, kwargs, rtol, atol, switches)
+        if watched:
+            solve = _switching(solve, system, kwargs, rtol, atol, switches, switching)
     try:
         res = solve(system.residual, (t_start, t_end), y_init, yp_init, **kwargs)
     except SolverError as exc:
@@ -411,11 +412,23 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     return sol
 
 
-def _switching(solve, system, kwargs, rtol, atol, switches):
-    """``solve`` going on where a pivot watch of index reduction fires: the states chosen
-    again there (see :mod:`pvgraph._state_switch`), the segments returned as one result in
-    ``system``'s layout; ``switches`` receives ``(t, states before, states after)``."""
+def _switching(solve, system, kwargs, rtol, atol, switches, switching=True):
+    """``solve`` for a system whose index reduction watches its pivots (see
+    :mod:`pvgraph._state_switch`). The watches are relative to the pivots' values where the
+    states were chosen: a run starting elsewhere (``start=``, runtime parameters: a pendulum
+    compiled at 0.1 rad started beyond the bottom, a link of another length) first chooses
+    them there. With ``switching``, the run goes on where a watch fires, with the states chosen
+    again; the segments are returned as one result in ``system``'s layout; ``switches``
+    receives ``(t, states before, states after)``."""
     from . import _state_switch as S
+
+    def retarget(kw, current, new):
+        kw.update(algebraic=new.algebraic, jac=new.solver_jacobian(),
+                  jac_sparsity=new.jac_sparsity, var_names=new.names,
+                  events=S.for_run(new._run_events(), switching) or None,
+                  atol=_carried_atol(system, new, kw["atol"], rtol, atol))
+        if "suppress_alg" in kw:
+            kw["suppress_alg"] = bool(np.any(~np.asarray(new.algebraic)))
 
     def run(residual, span, y0, yp0, **kw):
         t_end = span[1]
@@ -423,10 +436,19 @@ def _switching(solve, system, kwargs, rtol, atol, switches):
         pieces = []        # (system, result) per segment
         kept = set()       # switch watches whose block kept its states (not watched again)
         t_eval = kw.get("t_eval")
+        rebased = S.rebased(current, span[0], y0, yp0)
+        if rebased is not None:
+            if S.states_of(rebased) != S.states_of(current):
+                switches.append((float(span[0]), S.states_of(current), S.states_of(rebased)))
+            rebased.modes[:] = current.modes
+            y0, yp0 = (a[0] for a in S.to_layout(rebased, current, np.array([span[0]]), y0,
+                                                 yp0))
+            retarget(kw, current, rebased)
+            current = rebased
         while True:
             res = solve(current.residual, span, y0, yp0, **kw)
             pieces.append((current, res))
-            rec = S.fired(res, S.watch_names(kw["events"]))
+            rec = S.fired(res, S.watch_names(kw["events"] or ())) if switching else None
             if rec is None or not res.success:
                 break
             new = S.switched(current, rec) if len(switches) < S.MAX_SWITCHES else None
@@ -436,7 +458,7 @@ def _switching(solve, system, kwargs, rtol, atol, switches):
             if new is None:     # this choice is still the best there: go on with it
                 kept.add(rec.name)
                 y0, yp0 = rec.y, rec.yp
-                kw["events"] = S.for_run(current._run_events(), True, kept)
+                kw["events"] = S.for_run(current._run_events(), True, kept) or None
             else:
                 switches.append((float(rec.t), S.states_of(current), S.states_of(new)))
                 new.modes[:] = current.modes
@@ -444,21 +466,15 @@ def _switching(solve, system, kwargs, rtol, atol, switches):
                 y0, yp0 = (a[0] for a in S.to_layout(new, current, np.array([rec.t]), rec.y,
                                                      rec.yp))
                 kept = set()
-                kw.update(algebraic=new.algebraic, jac=new.solver_jacobian(),
-                          jac_sparsity=new.jac_sparsity, var_names=new.names,
-                          events=S.for_run(new._run_events(), True),
-                          atol=_carried_atol(system, new, kw["atol"], rtol, atol))
-                if "suppress_alg" in kw:
-                    kw["suppress_alg"] = bool(np.any(~np.asarray(new.algebraic)))
+                retarget(kw, current, new)
                 current = new
             kw["calc_initial"] = "algebraic"
             span = (float(rec.t), t_end)
             if t_eval is not None:
+                # the run goes on to t_end (its events, a terminal one) with what is left
                 t_eval = np.asarray(t_eval)[np.asarray(t_eval) > rec.t]
-                if t_eval.size == 0:
-                    break
                 kw["t_eval"] = t_eval
-        if len(pieces) == 1:
+        if len(pieces) == 1 and current is system:
             return res
         return _joined(system, pieces)
     return run
@@ -486,14 +502,17 @@ def _joined(system, pieces):
     stats: dict = {}
     for k, (sysk, res) in enumerate(pieces):
         t, y, yp = np.asarray(res.t), np.asarray(res.y), np.asarray(res.yp)
-        if k and len(t) and ts and len(ts[-1]) and t[0] == ts[-1][-1]:
-            t, y, yp = t[1:], y[1:], yp[1:]
+        # a switch's instant stays twice (before and after, as at an event): the algebraic
+        # variables are solved again there, and sol.der() of an output does not difference
+        # across it
         if sysk is not system and len(t):
             y, yp = S.to_layout(system, sysk, t, y, yp)
         ts.append(t)
         ys.append(y.reshape(len(t), system.n))
         yps.append(yp.reshape(len(t), system.n))
         for rec in res.events:
+            if rec.name.startswith(S.EVENT_OWNER + "."):
+                continue            # the pivot watches: told in stats["state_switches"]
             if sysk is not system:
                 ry, ryp = S.to_layout(system, sysk, np.array([rec.t]), rec.y, rec.yp)
                 rec = dataclasses.replace(rec, y=ry[0], yp=ryp[0])
@@ -501,6 +520,8 @@ def _joined(system, pieces):
         for key, value in res.stats.items():
             if isinstance(value, (int, float)) and not isinstance(value, bool):
                 stats[key] = stats.get(key, 0) + value
+            else:
+                stats.setdefault(key, value)
         log.extend(sysk.mode_log)
     last = pieces[-1][1]
     out = DAEResult(t=np.concatenate(ts), y=np.concatenate(ys), yp=np.concatenate(yps),

@@ -232,6 +232,13 @@ def _close_units(name: str) -> str:
     """``"; did you mean 'psi'?"`` for a unit written in another case or close to a known
     one, else ``""``."""
     import difflib
+    for prefix, scale in {**_PREFIXES, "K": 1e3}.items():   # "kpsi", "Krpm", "mdeg"
+        rest = name[len(prefix):]
+        if name.startswith(prefix) and rest in _UNITS and not _UNITS[rest][2]:
+            return (f"; {rest!r} takes no SI prefix ({prefix!r}): write the number in {rest!r} "
+                    f"('{scale:g} {rest}' for '1 {name}')")
+    if name.startswith("h") and name[1:] in _UNITS:   # hecto is not among the prefixes
+        return f"; the prefix 'h' (hecto) is not read: write '100 {name[1:]}' for '1 {name}'"
     same = [u for u in _UNITS if u.lower() == name.lower()]
     if name.isupper() and name.lower() not in same:     # "MM": the millimetre, first
         try:
@@ -245,8 +252,9 @@ def _close_units(name: str) -> str:
                 rest = name[len(written):].lower()
                 same += [prefix + u for u, (_, _, pre) in _UNITS.items()
                          if pre and u.lower() == rest]
-    close = list(dict.fromkeys(same)) or difflib.get_close_matches(name, list(_UNITS), n=3,
-                                                                    cutoff=0.75)
+    close = list(dict.fromkeys(same)) or [
+        u for u in difflib.get_close_matches(name, list(_UNITS), n=3, cutoff=0.75)
+        if not (name.startswith(u) and name[len(u):][:1].isupper())]   # "degC" is no "deg"
     return f"; did you mean {' or '.join(map(repr, close))}?" if close else ""
 
 

@@ -456,7 +456,9 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
     direct : mapping name -> array (len(outputs),), optional
         ``d output / d u`` of each input at fixed unknowns: an output the compiler expressed
         in an input (a source's own flow ``pump.port.q = -Q``, a drive force holding ``k u``)
-        moves with it directly; added to ``D``.
+        moves with it directly; added to ``D``. For an input named as a runtime parameter
+        of the system (``"orifice.A"``) the derived outputs' partial derivatives are taken
+        from the compiled equations where ``direct`` does not give them.
     """
     if states != "differential":
         raise PvgraphError(f"linearize: states={states!r}; the states are the differential "
@@ -537,6 +539,11 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
                     f"inputs' rates)")
             C[r] = gy[x] + gy[z] @ Zx + gyp[x] @ A
             D[r] = gy[z] @ Zu + gyp[x] @ B
+            # an input that is a parameter the output reads (an orifice's q against its
+            # area): its partial derivative at fixed unknowns, unless given in ``direct``
+            for j, u in enumerate(inputs):
+                if u not in direct and u in system.parameters:
+                    D[r, j] += system.output_gradient(real, op.t, op.y, yp_op, names=[u])[1][0]
             continue
         coef, idx, _ = system.resolve(name)
         if idx is None:

@@ -357,8 +357,11 @@ def test_state_switches_keep_runtime_parameters_and_the_derivatives():
     s = c.compile()
     T = 4.0 * math.sqrt(L / G) * ellipk(math.sin(theta0 / 2.0) ** 2)
     sol = simulate(s, T, rtol=1e-8, params={"p.L": L})
-    assert len(sol.stats["state_switches"]) >= 3
-    assert np.all(np.diff(sol.t) > 0.0)
+    switches = [t for t, before, after in sol.stats["state_switches"] if before != after]
+    assert len(switches) >= 3
+    # in order; a switch's instant twice (before and after, as at an event)
+    assert np.all(np.diff(sol.t) >= 0.0)
+    assert set(sol.t[1:][np.diff(sol.t) == 0.0]) == {t for t in switches if t > 0.0}
     assert sol.final("p.x") == pytest.approx(L * math.sin(theta0), abs=2e-5)
     assert np.max(np.abs(sol.der("p.x") - sol["p.vx"])) < 1e-4
     assert np.allclose(sol["p.x"] ** 2 + sol["p.y"] ** 2, L * L, rtol=1e-8)
@@ -524,3 +527,48 @@ def test_a_build_time_start_moved_by_simulate_start_is_told():
     with pytest.warns(StartValueWarning, match=r"A.v from 0.5 to 1.5"):
         sol = simulate(c, 1e-3, start={"B.v": 3.0})
     assert sol["A.v"][0] == pytest.approx(1.5, abs=1e-9)
+
+
+@pytest.mark.parametrize("how", ["start", "params"])
+def test_a_run_starting_away_from_the_compiled_configuration_chooses_its_states_there(how):
+    """The pivot watches are relative to the configuration where the states were chosen: a
+    pendulum compiled hanging at 0.1 rad and started above the horizontal (y = 0.3, 1.875 rad:
+    the pivot of the other sign, where no watch could fire), or compiled with a 20 m link and
+    run with 1 m, first chooses its states at its start, then swings with the elliptic
+    integral's period (x at the quarter periods to 2e-5), energy conserved."""
+    if how == "start":
+        c = Circuit("pendulum")
+        c.add("p", Pendulum(theta0=0.1))
+        y0 = 0.3
+        th = math.atan2(math.sqrt(1.0 - y0 * y0), -y0)
+        run = dict(start={"p.y": y0})
+    else:
+        c = Circuit("pendulum")
+        c.add("p", Pendulum(theta0=1.8, L=20.0))
+        th = 1.8
+        run = dict(params={"p.L": 1.0})
+    T = 4.0 * math.sqrt(1.0 / G) * ellipk(math.sin(th / 2.0) ** 2)
+    t_eval = np.linspace(0.0, 2.0 * T, 9)
+    sol = simulate(c.compile(), 2.0 * T, rtol=1e-8, t_eval=t_eval, **run)
+    x0 = math.sin(th)
+    assert sol["p.x"] == pytest.approx(np.tile([x0, 0.0, -x0, 0.0], 3)[:9], abs=2e-5)
+    energy = 0.5 * (sol["p.vx"] ** 2 + sol["p.vy"] ** 2) + G * sol["p.y"]
+    assert np.ptp(energy) < 2e-4
+
+
+def test_events_after_the_last_output_time_still_fire_across_switches():
+    """t_eval = [0, 0.1] on a pendulum from 1.8 rad that switches its states: the run goes on
+    to t_end, and an event counting the passes through the bottom (x = 0) fires at
+    T/4 + k T/2 as without t_eval."""
+    class Counted(Pendulum):
+        def equations(self, v, p):
+            v.event("bottom", v.x)
+            return super().equations(v, p)
+    c = Circuit("pendulum")
+    c.add("p", Counted(theta0=1.8))
+    T = 4.0 * math.sqrt(1.0 / G) * ellipk(math.sin(0.9) ** 2)
+    sol = simulate(c, 1.6 * T, rtol=1e-8, t_eval=[0.0, 0.1])
+    crossings = [r.t for r in sol.events if r.name.endswith("bottom")]
+    assert crossings == pytest.approx([T / 4, 3 * T / 4, 5 * T / 4], abs=1e-4)
+    assert not any(r.name.startswith("index_reduction.") for r in sol.events)
+    assert list(sol.t) == [0.0, 0.1]

@@ -268,3 +268,17 @@ def test_shaft_speeds_and_displacements_are_shown_in_rpm_and_cm3_per_rev():
     assert display(2.0 * math.pi * 1000.0 / 60.0, "rad/s") == pytest.approx((1000.0, "rpm"))
     assert display(28e-6 / (2.0 * math.pi), "m^3/rad") == pytest.approx((28.0, "cm^3/rev"))
     assert display(1.0, "rad/s", si=True) == (1.0, "rad/s")
+
+
+@pytest.mark.parametrize("text, hint", [
+    ("1 kpsi", "'psi' takes no SI prefix ('k'): write the number in 'psi' ('1000 psi' for "
+               "'1 kpsi')"),
+    ("1 Krpm", "'rpm' takes no SI prefix ('K')"),
+    ("1 hPa", "the prefix 'h' (hecto) is not read: write '100 Pa' for '1 hPa'"),
+])
+def test_a_prefix_on_a_unit_that_takes_none_is_told_with_the_factor(text, hint):
+    with pytest.raises(UnitError, match=re.escape(hint)):
+        to_si(text)
+    with pytest.raises(UnitError) as info:
+        to_si("1 degC")
+    assert "did you mean" not in str(info.value)      # not a misspelt 'deg'

@@ -656,3 +656,28 @@ def test_python_control_methods_name_the_extra_where_it_is_missing(monkeypatch):
         with pytest.raises(PvgraphError, match=r'pip install "pvgraph\[control\]"'):
             call()
     assert lm.poles() == pytest.approx([-1.0])        # the rest needs nothing
+
+
+def test_linearize_takes_a_derived_outputs_own_dependence_on_a_parameter_input():
+    """linearize(system, op, {"orifice.A": dF/dA}, ["orifice.q", "orifice.P_loss"]): q and
+    P_loss read A at fixed pressures; at DC all the pump's flow still passes (dq/dA = 0) and
+    the loss falls as dP/dA = -2 Q dp / A."""
+    from pvgraph import Circuit
+    from pvgraph.analysis import input_sensitivity, linearize, steady_state
+    from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
+    Q, A = 1e-4, 2e-6
+
+    def build(u):
+        c = Circuit("demo")
+        pump, node = c.add("pump", FlowSource(Q=Q)), c.add("node", VolumeNode(V="0.2 L"))
+        o, t = c.add("orifice", Orifice(A=u["orifice.A"], Cd=0.6)), c.add("tank", Tank())
+        c.connect(pump.port, node.port, o.a)
+        c.connect(o.b, t.port)
+        return c
+    s = build({"orifice.A": A}).compile()
+    op = steady_state(s)
+    dF = input_sensitivity(build, {"orifice.A": A}, "orifice.A", op)
+    gain = linearize(s, op, {"orifice.A": dF}, ["orifice.q", "orifice.P_loss"]).dc_gain()[:, 0]
+    dp = 870.0 / 2.0 * (Q / (0.6 * A)) ** 2
+    assert abs(gain[0]) < 1e-9 * Q / A
+    assert gain[1] == pytest.approx(-2.0 * Q * dp / A, rel=1e-6)
