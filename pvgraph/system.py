@@ -52,12 +52,14 @@ class _Entry:
 
 
 class ModeView:
-    """A component's view of the system's discrete modes: ``modes["open"] = 1.0``."""
+    """A component's view of the system's discrete modes: ``modes["open"] = 1.0``; ``t`` is the
+    time of the event whose action receives it (None outside a run)."""
 
     def __init__(self, values: list, index: dict[str, int], owner: str):
         self._values = values
         self._index = index
         self._owner = owner
+        self.t = None
 
     def __getitem__(self, name):
         return self._values[self._slot(name)]
@@ -433,6 +435,7 @@ class System:
         view = self.mode_view(path)
 
         def act(t, y, yp):
+            view.t = float(t)
             spec.action(view)
             self.mode_log.append((float(t), tuple(self.modes)))
             return None

@@ -150,6 +150,20 @@ def compliance(p, fp: FluidCompliance):
     return 1.0 / effective_bulk_modulus(p, fp) + cavitation_compliance(p, fp)
 
 
+def _caller_level() -> int:
+    """The ``stacklevel`` pointing at the first caller outside pvgraph and its component
+    library (the user's ``simulate`` call), counted from the caller of this function."""
+    import os
+    import sys
+    import pvgraph
+    inside = (os.path.dirname(os.path.abspath(pvgraph.__file__)) + os.sep,
+              os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep)
+    frame, level = sys._getframe(1), 1
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(inside):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
 class CavitationWarning(PlausibilityWarning):
     """A chamber reached the vapour pressure: the oil cavitates there."""
 
@@ -170,9 +184,11 @@ def cavitation_warning(v, p, fp: FluidCompliance, what: str, mode: str = "cavita
 
     def action(modes):
         modes[mode] = 1.0
+        t = getattr(modes, "t", None)
+        when = f" at t = {t:.6g} s" if t is not None else ""
         warnings.warn(CavitationWarning(
-            f"{path}: the pressure in {what} falls to the vapour pressure ({vapour}): "
+            f"{path}: the pressure in {what} falls to the vapour pressure ({vapour}){when}: "
             f"the oil cavitates there. Check the flow out of it (a load running "
             f"ahead of its supply, a motor overrunning) or add a make-up (anti-cavitation) "
-            f"check valve from tank."), stacklevel=2)
+            f"check valve from tank."), stacklevel=_caller_level())
     v.event("cavitation", condition, direction=-1, action=action)

@@ -58,8 +58,15 @@ def test_volume_drained_below_vacuum_stops_at_the_vapour_pressure_and_warns():
     c.add("sink", FlowSource(Q=-Q))
     c.connect("vol.port", "sink.port")
     t_linear = 0.9 * (p0 + P_ATM - 0.32e5) * V / (BETA * Q)     # still above the onset
-    with pytest.warns(CavitationWarning, match="vol"):
+    with pytest.warns(CavitationWarning, match=r"vol: .* at t = ([\d.e+-]+) s") as told:
         sol = simulate(c, T, rtol=1e-8, atol=1e-10, t_eval=[0.0, t_linear, T])
+    # told at the user's call, with the time the pressure reached p_vap + dp_cav: after the
+    # linear fall to the onset of the cavitation compliance, p_vap + 10 dp_cav
+    warned = [w for w in told if issubclass(w.category, CavitationWarning)][0]
+    assert warned.filename == __file__
+    import re
+    t_warn = float(re.search(r"at t = ([\d.e+-]+) s", str(warned.message)).group(1))
+    assert (p0 + P_ATM - P_VAP - 10 * DP_CAV) * V / (BETA * Q) < t_warn < T
     assert sol["vol.port.p"][1] == pytest.approx(p0 - BETA * Q * t_linear / V, rel=1e-8)
     p_end = sol.final("vol.port.p")
     # the drawn volume equals the integral of V * compliance from p_end to p0
