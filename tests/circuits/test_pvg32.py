@@ -171,3 +171,18 @@ def test_cavitation_of_the_start_from_rest_is_not_reported_but_later_cavitation_
     sol.y[sol.t > 0.15, j] = MINERAL_OIL.p_vap - MINERAL_OIL.p_atm   # as if it cavitated
     with pytest.warns(CavitationWarning, match=r"pvg.pvb.LS_channel.port.p: .* at t = 0.15"):
         V._warn_cavitation(sol, MINERAL_OIL)
+
+
+def test_a_sweep_point_not_steady_at_8_s_is_compared_at_its_steady_state():
+    """A pump flow of 15.78 L/min, just above sweep-6's demand (as a calibration finds it):
+    the load pressure still moves in the 8th second, so the run is told not settled, and the
+    values compared are those of the run from rest to 24 s, equal to a 24 s settling run's."""
+    from pvgraph.circuits.pvg32.parameters import with_values
+    from pvgraph.units import lpm
+    p = with_values(report_tuned(), {"rig.pump_flow": lpm(15.78)})
+    r = run_scenario("sweep-6", p)
+    assert not r.settled and r.settle_deviation > 1e5 and r.compared_at == 24.0
+    longer = run_scenario("sweep-6", p, settle=24.0)
+    assert longer.settled
+    assert r.simulated["Pf"] == pytest.approx(longer.simulated["Pf"], rel=1e-6)
+    assert r.simulated["Q_total"] == pytest.approx(longer.simulated["Q_total"], rel=1e-6)
