@@ -71,6 +71,9 @@ def _swap_load(r, tmp_path):
     q_rod = cyl["v_rod"] * cyl["A_cap"] * 60000.0
     assert q_rod == pytest.approx(cyl["q_B_lpm"], rel=0.05)         # flow = A * velocity
     assert cyl["LS"] < lam["LS"]                                      # lighter load here
+    # settled, the laminar load is at its operating point: the PVP spring's margin (12.97 bar
+    # where A3 opens) within 1 bar, as pvgraph validate checks it
+    assert r["laminar, 8 s"]["margin"] == pytest.approx(12.97, abs=1.0)
     assert (tmp_path / "swap_load.png").exists()
 
 
