@@ -1,6 +1,6 @@
 """Figures of docs/pvg32_model.md that compare model variants on the solenoid-step tests.
 
-``python -m circuits.figures`` regenerates them (about a minute): the pressure drop over L3
+``python -m pvgraph.circuits.figures docs/img`` regenerates them (about a minute; without a folder they go to ``pvgraph-figures``): the pressure drop over L3
 after the L2 step (report figures 4.41-4.48) for
 
 - ``pve_delay_steps.png``: the PVE valves' switching delays (4.5.5: 20 ms NC, 3 ms NO) as one
@@ -120,7 +120,9 @@ def lever_mass_figure(path: str) -> str:
 
 
 if __name__ == "__main__":
-    folder = sys.argv[1] if len(sys.argv) > 1 else os.path.join("docs", "img")
+    # the documentation's figures are regenerated with the folder given: docs/img
+    folder = sys.argv[1] if len(sys.argv) > 1 else "pvgraph-figures"
+    os.makedirs(folder, exist_ok=True)
     for make, name in ((delay_figure, "pve_delay_steps.png"),
                        (lever_mass_figure, "lever_mass_steps.png")):
         print("wrote", make(os.path.join(folder, name)))
