@@ -351,7 +351,7 @@ def sweep_scenarios(args) -> int:
     if result is None:
         return 130
     print(f"PVG 32 rig sweep: {', '.join(args.scenario)}, preset '{args.preset}', {args.law} "
-          f"load, settle {settle:g} s; {len(result)} cases on {backend}, "
+          f"load, settle {settle:g} s; {len(result)} case{'s' if len(result) != 1 else ''} on {backend}, "
           f"{result.wall_time:.1f} s wall\n")
     print(_format_sweep_table(result, si=args.si))
     print(f"\n{len(result.ok)} ok, {len(result.failed)} failed; wrote {result.files[0]} and "

@@ -747,6 +747,6 @@ def format_cross_validation(cv: CrossValidation) -> str:
             lines.append(f"  {verdict}  held-out {label}: {ok}/{total} (worst "
                          f"{shown_against(worst, tol)} at {name}{aim})")
         lines.append("")
-    lines.append(f"{len(cv.folds)} folds, {cv.wall_time:.1f} s wall on {cv.workers} "
+    lines.append(f"{len(cv.folds)} fold{'s' if len(cv.folds) != 1 else ''}, {cv.wall_time:.1f} s wall on {cv.workers} "
                  f"process(es) (steady states)")
     return "\n".join(lines)

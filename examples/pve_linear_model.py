@@ -40,7 +40,10 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-import control  # noqa: E402
+try:
+    import control  # noqa: E402
+except ImportError:
+    sys.exit("examples/pve_linear_model.py needs python-control: pip install \"pvgraph[control]\"")
 import numpy as np  # noqa: E402
 
 from pvgraph.circuits.pvg32.modules import build_pvb, build_pve  # noqa: E402

@@ -620,7 +620,7 @@ def cmd_sweep(args) -> int:
     if result is None:
         return 130
     what = "steady states" if args.steady else f"t_end {t_end:g} s"
-    print(f"{target.spec}: {len(result)} cases on {backend}, {what}, "
+    print(f"{target.spec}: {len(result)} case{'s' if len(result) != 1 else ''} on {backend}, {what}, "
           f"{result.wall_time:.1f} s wall\n")
     param_units = {n: declared_unit(desc) or "" for n, (_, desc) in valid.items()}
     print(_format_table(result, units, args.si, param_units))
@@ -1046,6 +1046,9 @@ def _run(args, argv) -> int:
     except PvgraphError as exc:
         print(f"pvgraph {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:          # the output went to a reader that stopped (| head)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except OSError as exc:          # an output file that could not be written after all
         text = str(exc) if str(exc).startswith("cannot write") else exc.strerror or str(exc)
         name = getattr(exc, "filename", None)
@@ -1056,9 +1059,6 @@ def _run(args, argv) -> int:
     except KeyboardInterrupt:
         print(f"pvgraph {args.command}: interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:          # the output went to a reader that stopped (| head)
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 0
 
 
 if __name__ == "__main__":
