@@ -111,7 +111,10 @@ def _check_cross_validation_options(args) -> None:
         keys = fold_keys()
         unknown = [f for f in args.fold if f not in keys]
         if unknown:
-            raise PvgraphError(f"--fold {unknown}: no such fold; the folds are "
+            import difflib
+            close = difflib.get_close_matches(unknown[0], keys, n=2, cutoff=0.5)
+            hint = f"; did you mean {' or '.join(map(repr, close))}?" if close else ""
+            raise PvgraphError(f"--fold {unknown}: no such fold{hint} The folds are "
                                f"{', '.join(repr(k) for k in keys)}")
 
 
