@@ -616,7 +616,7 @@ def test_validate_roles_per_configuration_and_model_checks(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--fold", "U=4.6"], "--fold ['U=4.6']: no such fold; the folds are 'U = 4.24 V'"),
+    (["--fold", "U=4.6"], "--fold ['U=4.6']: no such fold; did you mean 'U = 4.6 V'"),
     (["--fold", "U = 4.6 V"], "--fold only apply with --cross-validate"),
     (["--meter-out", "ratio"], "--meter-out only apply with --cross-validate"),
 ])
