@@ -5,7 +5,7 @@ from .check_valve import CheckValve, PilotOperatedCheckValve
 from .cylinder import Cylinder
 from .directional_valves import (DirectionalValve22, DirectionalValve32, DirectionalValve42,
                                  DirectionalValve43, ServoValve)
-from .flow_control import FlowControlValve, ShuttleValve
+from .flow_control import FlowControlValve, FlowDivider, ShuttleValve
 from .fluid import MINERAL_OIL, CavitationWarning, Fluid
 from .lines import PiLine, segmented_line
 from .machines import (FixedDisplacementPump, HydraulicMotor, LoadSensingPump,
@@ -24,7 +24,7 @@ __all__ = ["Fluid", "MINERAL_OIL", "CavitationWarning",
            "Orifice", "LaminarOrifice", "VariableOrifice", "CheckValve",
            "PilotOperatedCheckValve",
            "ReliefValve", "DynamicReliefValve", "PilotReliefValve", "PressureReducingValve",
-           "SequenceValve", "CounterbalanceValve", "ShuttleValve", "FlowControlValve",
+           "SequenceValve", "CounterbalanceValve", "ShuttleValve", "FlowControlValve", "FlowDivider",
            "DirectionalValve43", "DirectionalValve42", "DirectionalValve32", "DirectionalValve22",
            "ServoValve", "GasAccumulator", "PiLine", "segmented_line",
            "FixedDisplacementPump", "VariableDisplacementPump", "PressureCompensatedPump",

@@ -1,4 +1,5 @@
-"""Flow control: the shuttle (OR) valve of LS lines and a 2-way pressure-compensated flow control.
+"""Flow control: the shuttle (OR) valve of LS lines, a 2-way pressure-compensated flow control
+and a gear-type flow divider.
 
 ``ShuttleValve``: ports ``a``, ``b`` (inlets) and ``out``. A ball shuttles to the lower inlet and
 seals it, so ``out`` connects to the higher one. With ``s = ramp(a.p - b.p; -dp_switch/2,
@@ -39,13 +40,13 @@ import math
 from pydantic import Field
 
 from pvgraph import expr as E
-from pvgraph.component import Component, Hydraulic, Params
+from pvgraph.component import Component, Hydraulic, Params, Variable
 from pvgraph.laws import orifice_flow, smooth_min
 
 from .check_valve import smoothstep_ramp
 from .fluid import rho_field
 
-__all__ = ["ShuttleValve", "FlowControlValve"]
+__all__ = ["ShuttleValve", "FlowControlValve", "FlowDivider"]
 
 
 class ShuttleValveParams(Params):
@@ -117,3 +118,40 @@ class FlowControlValve(Component):
         q = v.observe("q", E.where(dp > 0.0, smooth_min(q_s, p.Q_set, w) - offset, q_s) + leak,
                       "m^3/s", "flow A -> B")
         return [v.A.q - q, v.A.q + v.B.q]
+
+
+class FlowDividerParams(Params):
+    ratio: float = Field(0.5, gt=0.0, lt=1.0,
+                         description="Share of the displaced flow that goes to A [-] (the "
+                                     "sections' displacements D_A / (D_A + D_B))")
+    C_leak: float = Field(0.0, ge=0.0, le=1e-9,
+                          description="Laminar leakage of each section from its outlet back "
+                                      "to the inlet [m^3/(s Pa)] (0: volumetrically ideal)")
+
+
+class FlowDivider(Component):
+    """Gear-type flow divider: two gear sections on one shaft split the inlet flow ``P`` into
+    ``A`` and ``B`` in the ratio of their displacements, whatever the outlet pressures.
+
+    The sections turn together, so each displaces its share of one flow ``Q``; the one facing
+    the lower outlet pressure drives the other as a motor (the shaft carries no torque), so
+    the inlet pressure is the displacement-weighted mean of the outlets' (an ideal divider
+    intensifies: an outlet can be above the inlet)::
+
+        A.q = -(r Q - C_leak (A.p - P.p)),   B.q = -((1 - r) Q - C_leak (B.p - P.p))
+        P.q = -(A.q + B.q),                  P.p = r A.p + (1 - r) B.p
+    """
+
+    Params = FlowDividerParams
+    ports = {"P": Hydraulic("inlet"), "A": Hydraulic("outlet, share ratio"),
+             "B": Hydraulic("outlet, share 1 - ratio")}
+    variables = {"Q": Variable("m^3/s", 0.0, 1e-4, "flow displaced by both sections")}
+
+    def equations(self, v, p):
+        r = p.ratio
+        v.observe("P_shaft", (v.A.p - v.P.p) * r * v.Q, "W",
+                  "power section B passes to section A through the shaft")
+        return [v.A.q + r * v.Q - p.C_leak * (v.A.p - v.P.p),
+                v.B.q + (1.0 - r) * v.Q - p.C_leak * (v.B.p - v.P.p),
+                v.P.q + v.A.q + v.B.q,
+                v.P.p - (r * v.A.p + (1.0 - r) * v.B.p)]

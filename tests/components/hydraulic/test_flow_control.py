@@ -108,3 +108,61 @@ def test_flow_source_above_the_setting_gives_an_absurd_pressure_that_is_named():
         with pytest.raises(PlausibilityWarning, match=r"implausible steady pressure .* "
                                                       r"src.port.p|fcv.A.p"):
             steady_state(c.compile())
+
+
+def _divider_circuit(ratio=0.5, C_leak=0.0, A_a="2 mm^2", A_b="4 mm^2"):
+    from pvgraph.components import FlowDivider, FlowSource, Orifice, Tank, VolumeNode
+    c = Circuit("divider")
+    c.add("pump", FlowSource(Q="20 L/min"))
+    c.add("hose", VolumeNode(V="0.1 L"))
+    c.add("div", FlowDivider(ratio=ratio, C_leak=C_leak))
+    for side, area in (("A", A_a), ("B", A_b)):
+        c.add(f"v{side}", VolumeNode(V="0.05 L"))
+        c.add(f"o{side}", Orifice(A=area))
+    c.add("tank", Tank())
+    c.connect("pump.port", "hose.port", "div.P")
+    c.connect("div.A", "vA.port", "oA.a")
+    c.connect("div.B", "vB.port", "oB.a")
+    c.connect("oA.b", "oB.b", "tank.port")
+    return c
+
+
+@pytest.mark.parametrize("ratio", [0.5, 0.3])
+def test_a_flow_divider_splits_the_flow_by_its_displacements_whatever_the_loads(ratio):
+    """20 L/min into a gear divider feeding a 2 mm^2 and a 4 mm^2 orifice: each outlet gets
+    its share (r Q, (1 - r) Q) although their pressures differ fourfold; the inlet is at the
+    shares' mean pressure r p_A + (1 - r) p_B (the shaft passes the power between the
+    sections); flow and power balance."""
+    from pvgraph.analysis import steady_state
+    op = steady_state(_divider_circuit(ratio).compile())
+    Q = 20.0 / 60000.0
+    assert op["oA.q"] == pytest.approx(ratio * Q, rel=1e-9)
+    assert op["oB.q"] == pytest.approx((1.0 - ratio) * Q, rel=1e-9)
+    p_a = 870.0 / 2.0 * (ratio * Q / (0.6 * 2e-6)) ** 2
+    p_b = 870.0 / 2.0 * ((1.0 - ratio) * Q / (0.6 * 4e-6)) ** 2
+    assert op["div.A.p"] == pytest.approx(p_a, rel=1e-3)
+    assert op["div.B.p"] == pytest.approx(p_b, rel=1e-3)
+    assert op["div.P.p"] == pytest.approx(ratio * op["div.A.p"] + (1 - ratio) * op["div.B.p"],
+                                          rel=1e-12)
+    power_in = op["div.P.p"] * Q
+    power_out = op["div.A.p"] * op["oA.q"] + op["div.B.p"] * op["oB.q"]
+    assert power_out == pytest.approx(power_in, rel=1e-9)
+
+
+def test_a_leaking_divider_loses_flow_on_its_higher_pressure_side():
+    """C_leak = 1e-11 m^3/(s Pa) per section: the side above the inlet pressure leaks back,
+    the other gains, the split moves by C_leak (p_A - p_P) (solved by hand with brentq)."""
+    from pvgraph.analysis import steady_state
+    C = 1e-11
+    op = steady_state(_divider_circuit(0.5, C).compile())
+    Q, k = 20.0 / 60000.0, 870.0 / 2.0
+
+    def split(qa):
+        qb = Q - qa
+        pa, pb = k * (qa / 1.2e-6) ** 2, k * (qb / 2.4e-6) ** 2
+        pp = 0.5 * pa + 0.5 * pb
+        disp = (Q + C * (pa - pp) + C * (pb - pp))      # both sections displace Q_disp / 2
+        return qa - (0.5 * disp - C * (pa - pp))
+    qa = brentq(split, 0.1 * Q, 0.9 * Q, xtol=1e-15)
+    assert op["oA.q"] == pytest.approx(qa, rel=1e-6)
+    assert op["oA.q"] < 0.5 * Q < op["oB.q"]
