@@ -161,28 +161,23 @@ def rebased(system, t, y, yp):
     off = [name for name, g in zip(names, values)
            if name.startswith(EVENT_OWNER + ".switch_") and
            not lo <= g + SWITCH_RATIO <= hi]
-    if not off:
-        return None
-    point = choice_point(system, y, yp)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")     # told when the circuit was first compiled
-            new = system._recompiled({}, choice_point=point)
-    except StructureError:
-        return None
-    return new.use_backend(system.backend) if new.backend != system.backend else new
+    return chosen_at(system, y, yp) if off else None
 
 
 def switched(system, rec):
     """The system with the states chosen at the record ``rec``, or None where the choice
     made there is the one already made (or none can be made there)."""
-    point = choice_point(system, rec.y, rec.yp)
+    new = chosen_at(system, rec.y, rec.yp)
+    return None if new is None or states_of(new) == states_of(system) else new
+
+
+def chosen_at(system, y, yp):
+    """``system``'s circuit compiled again (its parameter values, its backend) with the states
+    chosen where its unknowns are ``y`` and ``y'``; None where no choice can be made there."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")     # told when the circuit was first compiled
-            new = system._recompiled({}, choice_point=point)
+            new = system._recompiled({}, choice_point=choice_point(system, y, yp))
     except StructureError:
-        return None
-    if states_of(new) == states_of(system):
         return None
     return new.use_backend(system.backend) if new.backend != system.backend else new

@@ -59,7 +59,9 @@ __all__ = ["Friction", "FrictionParams", "LuGreFriction", "LuGreFrictionParams",
 LUGRE_V_EPS = 1e-8   # [m/s]: rounds |v| in the bristle law (a stuck bristle relaxes over F/(sigma0 v))
 
 
-class FrictionParams(Params):
+class StribeckParams(Params):
+    """Coulomb, viscous and Stribeck levels shared by the friction laws."""
+
     F_c: float = Field(..., ge=0.0, le=1e6,
                        description="Coulomb (sliding) friction force [N] (report c_c, eq. 4.27; "
                                    "PVB compensator tuned to 50 N, table 4.14)")
@@ -72,11 +74,6 @@ class FrictionParams(Params):
     v_s: float = Field(1e-3, gt=0.0, le=10.0,
                        description="Stribeck velocity: decay of static to Coulomb friction "
                                    "[m/s] (report C_s, eq. A.5)")
-    delta: float = Field(2.0, ge=1.0, le=2.0,
-                         description="Stribeck shape exponent [-]: 1 as report eq. A.5, 2 "
-                                     "Gaussian")
-    v_eps: float = Field(1e-4, gt=0.0, le=1.0,
-                         description="Velocity width of the smoothed sign(v) [m/s]")
 
     @model_validator(mode="after")
     def _static_above_coulomb(self):
@@ -88,6 +85,14 @@ class FrictionParams(Params):
     def static(self) -> float:
         """The breakaway force in use [N]."""
         return self.F_c if self.F_s is None else self.F_s
+
+
+class FrictionParams(StribeckParams):
+    delta: float = Field(2.0, ge=1.0, le=2.0,
+                         description="Stribeck shape exponent [-]: 1 as report eq. A.5, 2 "
+                                     "Gaussian")
+    v_eps: float = Field(1e-4, gt=0.0, le=1.0,
+                         description="Velocity width of the smoothed sign(v) [m/s]")
 
 
 class Friction(Component):
@@ -108,17 +113,10 @@ class Friction(Component):
         return [v.flange.f - F]
 
 
-class LuGreFrictionParams(Params):
+class LuGreFrictionParams(StribeckParams):
     F_c: float = Field(..., gt=0.0, le=1e6,
                        description="Coulomb (sliding) friction force [N] (report c_c, eq. 4.27; "
                                    "PVB compensator tuned to 50 N, table 4.14)")
-    b: float = Field(0.0, ge=0.0, le=1e8, description="Viscous coefficient [N s/m] (report c_v)")
-    F_s: float | None = Field(None, gt=0.0, le=1e6,
-                              description="Static (breakaway) friction force [N]; default F_c "
-                                          "(no Stribeck effect) (report F_co + F_so, eq. A.5)")
-    v_s: float = Field(1e-3, gt=0.0, le=10.0,
-                       description="Stribeck velocity: decay of static to Coulomb friction "
-                                   "[m/s] (report C_s, eq. A.5)")
     sigma0: float = Field(5e6, gt=0.0, le=1e12,
                           description="Bristle stiffness [N/m]: pre-sliding travel F_s / sigma0 "
                                       "(5e6: 10 um at 50 N, the order of a spool's radial "
@@ -126,12 +124,6 @@ class LuGreFrictionParams(Params):
     sigma1: float = Field(1e3, ge=0.0, le=1e9,
                           description="Bristle damping [N s/m] (critical 2 sqrt(sigma0 m) for the "
                                       "mass m it holds: 1e3 for a 66 g spool)")
-
-    @model_validator(mode="after")
-    def _static_above_coulomb(self):
-        if self.F_s is not None and self.F_s < self.F_c:
-            raise ValueError(f"F_s ({self.F_s!r} N) must not be below F_c ({self.F_c!r} N)")
-        return self
 
 
 class LuGreFriction(Component):
