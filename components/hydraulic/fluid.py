@@ -159,7 +159,9 @@ def _caller_level() -> int:
     inside = (os.path.dirname(os.path.abspath(pvgraph.__file__)) + os.sep,
               os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep)
     frame, level = sys._getframe(1), 1
-    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(inside):
+    while frame is not None and (
+            os.path.abspath(frame.f_code.co_filename).startswith(inside) or
+            f"{os.sep}pydantic{os.sep}" in frame.f_code.co_filename):   # a parameter validator
         frame, level = frame.f_back, level + 1
     return level
 

@@ -17,10 +17,27 @@ from pydantic import Field, model_validator
 from pvgraph.component import Component, Hydraulic, Params, SignalIn, check_table
 from pvgraph import expr as E
 
+from .fluid import P_ATM
+
 
 class TankParams(Params):
     p0: float = Field(0.0, ge=-1e5, le=1e9,
                       description="Tank (gauge) pressure [Pa]; 0 is atmospheric")
+
+    @model_validator(mode="after")
+    def _one_atmosphere_gauge(self):
+        if abs(self.p0 - P_ATM) < 1.0:      # "1 atm", "101325 Pa": meant absolute, most likely
+            import warnings
+
+            from pvgraph.errors import PlausibilityWarning
+
+            from .fluid import _caller_level
+            warnings.warn(PlausibilityWarning(
+                f"p0 = {self.p0:g} Pa is one atmosphere above the atmosphere here: pressures "
+                f"in the library are gauge (0 = atmospheric, the absolute pressure is p + "
+                f"p_atm). An open reservoir is p0 = 0 (the default)."),
+                stacklevel=_caller_level())
+        return self
 
 
 class Tank(Component):

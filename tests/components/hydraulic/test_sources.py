@@ -85,3 +85,19 @@ def test_tabulated_pump_flow_ramp_gives_quadratic_pressure():
     np.testing.assert_allclose(sol["vol.port.p"], BETA / V * Q1 * t**2 / (2 * T), rtol=1e-5,
                                atol=10.0)
     np.testing.assert_allclose(sol["pump.Q"], Q1 * t / T, rtol=1e-9)
+
+
+def test_a_tank_given_one_atmosphere_is_told_that_pressures_are_gauge():
+    """Tank(p0="1 atm") is 1 atm above the atmosphere (pressures are gauge): a
+    PlausibilityWarning at the user's line says so; the default and other values are quiet."""
+    import warnings
+    from pvgraph.components import Tank
+    from pvgraph.errors import PlausibilityWarning
+    with pytest.warns(PlausibilityWarning, match=r"p0 = 101325 Pa .* gauge \(0 = atmospheric") \
+            as told:
+        Tank(p0="1 atm")
+    assert told[0].filename == __file__
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        Tank()
+        Tank(p0="2 bar")
