@@ -69,7 +69,8 @@ def _schematic(circuit):
     """Components, junctions and domain-tagged edges of a circuit, and its sub-circuit groups.
 
     Returns ``(nodes, edges, groups)``: nodes ``{id: (label, kind, group)}`` (kind is the class
-    name, or ``"junction"``), edges ``[(a, b, domain)]``, groups in depth-first order.
+    name, or ``"junction"``), edges ``[(a, b, domain, port at a, port at b)]`` (a junction's
+    port name is empty), groups in depth-first order.
     """
     from .circuit import Circuit, _leaf_port, _leaves
 
@@ -82,17 +83,20 @@ def _schematic(circuit):
 
     def walk(node, prefix):
         for k, refs in enumerate(node._connections):
-            ends = []
+            ends, ports = [], {}
             for r in refs:
-                owner, _ = _leaf_port(r)
+                owner, port = _leaf_port(r)
                 ends.append(path_of[id(owner)])
+                ports.setdefault(ends[-1], []).append(port)
             domain = refs[0].port.domain.name
+            label = {e: ",".join(p) for e, p in ports.items()}
             if len(set(ends)) > 2:
                 junction = f"{prefix}#{k}"
                 nodes[junction] = ("", "junction", prefix.rstrip("."))
-                edges.extend((e, junction, domain) for e in dict.fromkeys(ends))
+                edges.extend((e, junction, domain, label[e], "") for e in dict.fromkeys(ends))
             elif len(set(ends)) == 2:
-                edges.append((ends[0], ends[1], domain))
+                a, b = dict.fromkeys(ends)
+                edges.append((a, b, domain, label[a], label[b]))
         for name, child in node._components.items():
             if isinstance(child, Circuit):
                 groups.append(f"{prefix}{name}")
@@ -107,7 +111,7 @@ def _layered_positions(nodes, edges, groups):
 
     g = nx.Graph()
     g.add_nodes_from(nodes)
-    g.add_edges_from((a, b) for a, b, _ in edges)
+    g.add_edges_from((a, b) for a, b, *_ in edges)
     glob = {}
     for part in nx.connected_components(g):
         start = next(n for n in nodes if n in part)
@@ -173,9 +177,15 @@ def draw_circuit(circuit, path, *, fmt=None):
             boxstyle="round,pad=0.05", fc=f"C{k % 10}", alpha=0.07, ec=f"C{k % 10}", lw=0.8))
         ax.text(-0.55, -top - 0.05, grp, fontsize=8, va="top", ha="left", color=f"C{k % 10}",
                 fontweight="bold")
-    for a, b, domain in edges:
+    for a, b, domain, port_a, port_b in edges:
         colour, style, _ = _DOMAIN_STYLE.get(domain, ("k", "-", ""))
         (xa, ya), (xb, yb) = pos[a], pos[b]
+        for (x0, y0), (x1, y1), port in (((xa, ya), (xb, yb), port_a),
+                                         ((xb, yb), (xa, ya), port_b)):
+            if port:        # the port's name beside its component, along the line
+                ax.text(x0 + 0.28 * (x1 - x0), y0 + 0.28 * (y1 - y0), port, fontsize=5,
+                        color=colour, ha="center", va="center", zorder=2,
+                        bbox=dict(boxstyle="square,pad=0.05", fc="white", ec="none"))
         if xa == xb and abs(ya - yb) > 1.01:     # same column: bow around the boxes between
             ax.add_patch(mpatches.FancyArrowPatch(
                 (xa, ya), (xb, yb), connectionstyle=f"arc3,rad={0.25 if ya > yb else -0.25}",
@@ -230,8 +240,11 @@ def _write_dot(circuit, nodes, edges, groups, path):
                 emit(sub, indent + 1)
                 lines.append(f"{pad}}}")
     emit("", 1)
-    for a, b, domain in edges:
-        lines.append(f"  {q(a)} -- {q(b)} [{_DOMAIN_STYLE.get(domain, ('', '', ''))[2]}];")
+    for a, b, domain, port_a, port_b in edges:
+        ends = "".join(f", {key}={q(port)}" for key, port in (("taillabel", port_a),
+                                                              ("headlabel", port_b)) if port)
+        lines.append(f"  {q(a)} -- {q(b)} [{_DOMAIN_STYLE.get(domain, ('', '', ''))[2]}"
+                     f"{ends}, labelfontsize=7];")
     lines.append("}")
     with open(path, "w") as f:
         f.write("\n".join(lines) + "\n")

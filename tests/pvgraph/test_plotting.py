@@ -85,14 +85,16 @@ def test_schematic_groups_sub_circuits_and_styles_domains(tmp_path):
     assert nodes["bench.orifice"] == ("orifice", "Orifice", "bench")
     junctions = [n for n, v in nodes.items() if v[1] == "junction"]
     assert len(junctions) == 1                       # pump, node and orifice meet at one node
-    assert sorted(a for a, b, d in edges if b == junctions[0]) == \
-        ["bench.node", "bench.orifice", "bench.pump"]
-    assert ("mass", "wall", "mechanical") in edges
-    assert {d for _, _, d in edges} == {"hydraulic", "mechanical"}
+    # each end names the port it joins (a junction's side none)
+    assert sorted((a, pa) for a, b, d, pa, pb in edges if b == junctions[0]) == \
+        [("bench.node", "port"), ("bench.orifice", "a"), ("bench.pump", "port")]
+    assert ("mass", "wall", "mechanical", "flange", "flange") in edges
+    assert {e[2] for e in edges} == {"hydraulic", "mechanical"}
     dot = draw_circuit(outer, tmp_path / "o.dot")
     with open(dot) as f:
         text = f.read()
     assert 'subgraph "cluster_bench"' in text and "style=dashed" in text
+    assert 'taillabel="flange", headlabel="flange"' in text
     svg = draw_circuit(outer, tmp_path / "o.svg")
     with open(svg) as f:
         assert "<svg" in f.read()
