@@ -118,11 +118,38 @@ class ReliefValve(Component):
     ``q = Cd (A_leak + w x) sqrt(2 dp / rho)``. Without flow force (``theta = pi/2``) it is fully
     open at ``p_full = p_crack + k x_max / A_s``. The smoothing of the seat (width
     ``1e-3 x_max``) takes ``5e-4 x_max`` off the opening. The steady pressure at a pump flow
-    ``Q`` is the root of ``q(dp) = Q``.
+    ``Q`` is the root of ``q(dp) = Q``. From a data sheet's setting instead of the spool:
+    ``ReliefValve.from_setting("200 bar", "60 L/min", "15 bar")`` (cracking pressure, rated
+    flow, pressure rise to it).
     """
 
     Params = ReliefValveParams
     ports = {"P": Hydraulic("inlet (protected line)"), "T": Hydraulic("outlet to tank")}
+
+    @classmethod
+    def from_setting(cls, p_crack, Q_rated, dp_rated, **params) -> "ReliefValve":
+        """A relief valve from its data-sheet characteristic (as Simscape's set pressure and
+        regulation range): closed below ``p_crack``, opening in proportion to the pressure
+        above it, and passing ``Q_rated`` fully open at ``p_crack + dp_rated`` (``"200 bar"``,
+        ``"60 L/min"``, ``"15 bar"``; quantities or SI numbers). The spool is chosen to fit:
+        no flow force, a 1 mm stroke on 20 mm^2 (``params`` may set ``Cd``, ``rho``,
+        ``A_leak``, ``dp_t``)."""
+        from pvgraph.units import number_in
+        p_crack = number_in(p_crack, "Pa", "ReliefValve.from_setting p_crack")
+        Q = number_in(Q_rated, "m^3/s", "ReliefValve.from_setting Q_rated")
+        dp_o = number_in(dp_rated, "Pa", "ReliefValve.from_setting dp_rated")
+        for name, value in (("p_crack", p_crack), ("Q_rated", Q), ("dp_rated", dp_o)):
+            if not value > 0.0:
+                from pvgraph.errors import ParameterError
+                raise ParameterError(f"ReliefValve.from_setting: {name} must be positive, got "
+                                     f"{value!r}")
+        fields = cls.Params.model_fields
+        cd = float(params.get("Cd", fields["Cd"].default))
+        rho = float(params.get("rho", fields["rho"].default))
+        x_max, a_s = 1e-3, 20e-6
+        a_open = Q / (cd * math.sqrt(2.0 * (p_crack + dp_o) / rho))
+        return cls(p_crack=p_crack, A_s=a_s, k=dp_o * a_s / x_max, x_max=x_max,
+                   w=a_open / x_max, theta=math.pi / 2, **params)
 
     def equations(self, v, p):
         dp = v.observe("dp", v.P.p - v.T.p, "Pa", "pressure drop P - T")

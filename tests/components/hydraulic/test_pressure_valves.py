@@ -209,3 +209,32 @@ def test_dynamic_relief_fed_straight_is_told_to_take_a_volume():
     sol = simulate(build(True), 0.5)
     assert bar(150) < sol.final("v.P.p") < bar(170)
     assert stiff.final("v.P.p") == pytest.approx(sol.final("v.P.p"), rel=0.01)
+
+
+@pytest.mark.parametrize("Q_lpm", [60.0, 30.0, 5.0])
+def test_a_relief_valve_from_its_data_sheet_setting(Q_lpm):
+    """ReliefValve.from_setting("200 bar", "60 L/min", "15 bar"): 60 L/min fully open at
+    215 bar; below, the opening grows in proportion to dp - p_crack, so a flow Q holds
+    dp - p_crack = 15 bar (Q / 60 L/min) sqrt(215 bar / dp) (solved by brentq)."""
+    from scipy.optimize import brentq
+    from pvgraph.analysis import steady_state
+    from pvgraph.components.hydraulic import FlowSource, VolumeNode
+    c = Circuit("rv")
+    c.add("pump", FlowSource(Q=f"{Q_lpm} L/min"))
+    c.add("node", VolumeNode(V="0.1 L"))
+    c.add("rv", ReliefValve.from_setting("200 bar", "60 L/min", "15 bar"))
+    c.add("tank", Tank())
+    c.connect("pump.port", "node.port", "rv.P")
+    c.connect("rv.T", "tank.port")
+    p = steady_state(c.compile())["node.port.p"]
+    want = brentq(lambda dp: (dp - 200e5) - 15e5 * Q_lpm / 60.0 * (215e5 / dp) ** 0.5,
+                  200e5, 230e5)
+    assert p == pytest.approx(want, abs=0.02e5)
+
+
+def test_a_relief_setting_that_is_not_positive_is_refused():
+    from pvgraph import ParameterError
+    with pytest.raises(ParameterError, match="dp_rated must be positive"):
+        ReliefValve.from_setting("200 bar", "60 L/min", "0 bar")
+    with pytest.raises(ParameterError, match="is a pressure|dimension|p_crack"):
+        ReliefValve.from_setting("200 L/min", "60 L/min", "15 bar")
