@@ -28,7 +28,9 @@ modules the caller allows), never imported from a name the file chooses::
     type = "Tank"
 
 A sub-circuit is a component entry with ``type = "Circuit"`` and its own ``components``,
-``connections`` and ``expose = { P = { port = "node.port", description = "" } }``.
+``connections`` and ``expose = { P = { port = "node.port", description = "" } }``. A circuit's
+``fluid = { rho = 1000, beta = "22000 bar" }`` is :meth:`Circuit.use_fluid`: its parts, and
+those of its sub-circuits, take the properties they were not given.
 :func:`save` writes parameters as SI numbers with the unit each declares (``"0.0005 m^3"``), so
 a saved circuit loads back to the same floats. :func:`schema` is the JSON schema of the format.
 An error names the file and the line of the entry at fault.
@@ -94,6 +96,7 @@ class CircuitEntry(BaseModel):
     components: dict[str, Union["CircuitEntry", ComponentEntry]] = {}
     connections: list[list[str]] = []
     expose: dict[str, ExposedEntry] = {}
+    fluid: dict[str, Any] = {}
 
 
 class ModelFile(BaseModel):
@@ -105,6 +108,7 @@ class ModelFile(BaseModel):
     components: dict[str, Union[CircuitEntry, ComponentEntry]] = {}
     connections: list[list[str]] = []
     expose: dict[str, ExposedEntry] = {}
+    fluid: dict[str, Any] = {}
 
 
 def schema() -> dict:
@@ -218,6 +222,9 @@ def _node_dict(node: Circuit, known) -> dict:
     if node._exposed:
         out["expose"] = {name: {"port": _relative(ref, node), "description": desc}
                          for name, (ref, desc) in node._exposed.items()}
+    if node._fluid is not None:
+        out["fluid"] = {k: _value(v, None) if isinstance(v, (int, float)) else v
+                        for k, v in node._fluid.items()}
     return out
 
 
@@ -256,7 +263,7 @@ def _toml_value(v) -> str:
 
 
 def _toml_node(lines: list, prefix: str, node: dict) -> None:
-    for key in ("type", "format", "name", "params", "start", "connections", "expose"):
+    for key in ("type", "format", "name", "fluid", "params", "start", "connections", "expose"):
         if key in node and key != "components":
             value = node[key]
             if key == "connections":
@@ -337,11 +344,16 @@ class _Loader:
     def add(self, circuit, name, component, loc) -> None:
         try:
             circuit.add(name, component)
+        except ParameterError as exc:      # the circuit's fluid does not fit the part
+            raise self.fail(getattr(self, "fluid_loc", loc), str(exc)) from None
         except CircuitError as exc:        # a name that is not an identifier
             raise self.fail(loc, str(exc)) from None
 
     def node(self, name: str, entry, loc) -> Circuit:
         c = Circuit(name)
+        if entry.fluid:     # the circuit's fluid (Circuit.use_fluid), for the parts added next
+            c._fluid = dict(entry.fluid)
+            self.fluid_loc = loc + ("fluid",)
         for cname, child in entry.components.items():
             here = loc + ("components", cname)
             if isinstance(child, CircuitEntry):
@@ -398,13 +410,13 @@ def from_dict(data: dict, *, modules: Iterable[str] = (), text: str = "",
             msg = "expected a table of name = value pairs (TOML) or an object (JSON)"
         if err["type"] == "extra_forbidden":
             msg = (f"unknown key {loc[-1]!r}; a component holds type, params and start, a "
-                   f"sub-circuit type = \"Circuit\", components, connections and expose, the "
-                   f"file format, name, components, connections and expose")
+                   f"sub-circuit type = \"Circuit\", components, connections, expose and "
+                   f"fluid, the file format, name, components, connections, expose and fluid")
         raise ModelFileError(f"{where} ({'.'.join(map(str, loc)) or 'top level'}): "
                              f"{msg}") from None
     loader = _Loader(text, source, modules)
     root = CircuitEntry(type="Circuit", components=model.components,
-                        connections=model.connections, expose=model.expose)
+                        connections=model.connections, expose=model.expose, fluid=model.fluid)
     circuit = loader.node(model.name, root, ())
     circuit._origin = functools.partial(_where, text, source)   # for the compiler's messages
     return circuit

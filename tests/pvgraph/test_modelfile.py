@@ -82,7 +82,8 @@ def test_round_trip_keeps_every_float_and_the_hierarchy(fmt, tmp_path):
 
 def test_the_schema_describes_the_format():
     s = schema()
-    assert set(s["properties"]) == {"format", "name", "components", "connections", "expose"}
+    assert set(s["properties"]) == {"format", "name", "components", "connections", "expose",
+                                    "fluid"}
     assert "ComponentEntry" in s["$defs"] and "CircuitEntry" in s["$defs"]
     json.dumps(s)
 
@@ -204,3 +205,22 @@ def test_model_file_mistakes_are_told_at_their_line_in_plain_words(text, message
     path.write_text(text)
     with pytest.raises(ModelFileError, match=message):
         load(path)
+
+
+def test_a_fluid_in_the_file_reaches_the_parts_not_given_their_own(tmp_path):
+    """fluid = { rho = 1000 } at the top: the orifice's drop rho/2 (Q/(Cd A))^2 is that of
+    water; a sub-circuit's own fluid wins in it; saved and read back, the same; a fluid a part
+    refuses is told at the fluid's line."""
+    text = TEXT.replace('name = "demo"', 'name = "demo"\nfluid = { rho = 1000, beta = "15000 bar" }')
+    path = tmp_path / "water.toml"
+    path.write_text(text)
+    c = load(path)
+    assert c["orifice"].params.rho == 1000.0 and c["node"].params.beta == pytest.approx(1.5e9)
+    sol = simulate(c, 1.0)
+    q = 10 / 60e3
+    assert sol.final("node.port.p") == pytest.approx(1000 / 2 * (q / (0.6 * 2e-6)) ** 2, rel=1e-3)
+    back = load(save(c, tmp_path / "again.toml"))
+    assert to_dict(back) == to_dict(c)
+    bad = TEXT.replace('name = "demo"', 'name = "demo"\nfluid = { rho = 5 }')
+    with pytest.raises(ModelFileError, match=r"(?s)bad.toml, line 4 \(fluid\): orifice: .*rho = 5"):
+        loads(bad, source="bad.toml")
