@@ -12,7 +12,7 @@ import warnings
 
 import numpy as np
 
-from pvgraph.errors import InitializationError, SolverError
+from pvgraph.errors import InitializationError, PlausibilityWarning, SolverError
 from pvgraph.solver.events import (CHATTER_EVENTS, EventTracker, atol_vector, check_times,
                                    normalize_events, stopping_event)
 from pvgraph.solver.cstep import ADV_END, ADV_PAUSE, make_integrator
@@ -333,7 +333,9 @@ def _why_many_steps(integ, var_names) -> str:
             f"have it checked, or reduce the index (pvgraph.dae.compile_dae).")
 
 
-MAX_RESCUES = 200          # restarts past a failed corrector in one run (see _rescue)
+MAX_RESCUES = 20           # restarts past a failed corrector in one run (see _rescue): more
+                           # mean a node the run keeps failing on, whose values are not to be
+                           # trusted (a trapped pressure between closed valves): it stops there
 RESCUE_TRIES = 4           # ... each tried at 1/4, 1/40, 1/400, 1/4000 of the last step
 
 
@@ -372,6 +374,7 @@ def _rescue(exc, integ, initialise, t_end, rescue, tracker):
         raise exc
     rescue["count"] += 1
     rescue["delta"] = delta
+    rescue.setdefault("first", (t_r, list(getattr(exc, "culprits", []))[:3]))
     integ.nrescue = getattr(integ, "nrescue", 0) + 1
     return y_new, yp_new, t_new, t_r
 
@@ -543,6 +546,10 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
                 if t_end - t_new <= END_FUZZ * UROUND * (abs(t_new) + abs(t_new - got[3])):
                     end_state = (y_new, yp_new)
                     break
+                # the algebraic variables go into the error test from here: left out, the
+                # steps after a rescue can settle on a branch of the node's equation far from
+                # the solution (a node pressure of -1e7 bar, a load held by nothing)
+                integ.error_mask = None
                 integ.reinit(t_new, y_new, yp_new, t_end)
                 continue
         t_old, tn = integ.t_old, integ.tn
@@ -617,7 +624,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             ys.append(yv)
             yps.append(ypv)
             i_eval += 1
-    elif t_eval is None and hit is None:
+    elif t_eval is None and hit is None and end_state is None:
         ts[-1] = t_end
         ys[-1], yps[-1] = integ.interpolate(t_end)
     if tracker is not None and hit is None and end_state is None and integ.tn < t_end:
@@ -657,6 +664,15 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     }
     if rescue["count"]:
         stats["nrescue"] = rescue["count"]
+        t_first, names = rescue["first"]
+        warnings.warn(PlausibilityWarning(
+            f"{SOLVER_NAME}: the corrector failed down to a vanishing step {rescue['count']} "
+            f"time{'s' if rescue['count'] > 1 else ''} (first at t = {t_first:.6g} s"
+            f"{', on ' + ', '.join(map(repr, names)) if names else ''}); the run went on past "
+            f"each with the algebraic variables solved a step further and every variable in "
+            f"the error test from there. Where an algebraic pressure sits between valves with "
+            f"no volume, a VolumeNode on that node makes the circuit well-posed; values near "
+            f"those times are approximate."), stacklevel=2)
     return DAEResult(
         t=np.asarray(ts, dtype=float),
         y=np.array(ys, dtype=float) if ys else np.empty((0, n)),
