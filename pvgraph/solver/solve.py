@@ -12,7 +12,8 @@ import warnings
 
 import numpy as np
 
-from pvgraph.errors import InitializationError, PlausibilityWarning, SolverError
+from pvgraph.errors import (InitializationError, PlausibilityWarning, SolverError,
+                            outside_stacklevel)
 from pvgraph.solver.events import (CHATTER_EVENTS, EventTracker, atol_vector, check_times,
                                    normalize_events, stopping_event)
 from pvgraph.solver.cstep import ADV_END, ADV_PAUSE, make_integrator
@@ -672,7 +673,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             f"each with the algebraic variables solved a step further and every variable in "
             f"the error test from there. Where an algebraic pressure sits between valves with "
             f"no volume, a VolumeNode on that node makes the circuit well-posed; values near "
-            f"those times are approximate."), stacklevel=2)
+            f"those times are approximate."), stacklevel=outside_stacklevel())
     return DAEResult(
         t=np.asarray(ts, dtype=float),
         y=np.array(ys, dtype=float) if ys else np.empty((0, n)),
