@@ -143,34 +143,48 @@ class Circuit:
         self._fluid: dict | None = None
 
     # building ----------------------------------------------------------------------------------
-    def use_fluid(self, fluid) -> "Circuit":
+    def use_fluid(self, fluid, *, override: bool = False) -> "Circuit":
         """Give every part of this circuit (and of its sub-circuits, now and added later) the
         properties of ``fluid`` it takes and was not given (a Simscape fluid block):
         ``c.use_fluid(Fluid(rho=1000, nu="1 cSt", beta="22000 bar"))``.
 
         ``fluid`` is a parameter model (``pvgraph.components.Fluid``) or a mapping of field
         names to values; a part takes the fields its parameter model declares under those
-        names (``rho``, ``nu``, ``beta``, ``air``, ...). A value given to the part itself wins;
-        a sub-circuit with a fluid of its own keeps it. Returns the circuit.
+        names (``rho``, ``nu``, ``beta``, ``air``, ...). A value given to the part itself wins
+        (parts built by a function that passes its own values, the PVG 32's, keep them), unless
+        ``override``: then the fluid replaces those too. A sub-circuit with a fluid of its own
+        keeps it. A mapping adds to the circuit's fluid so far; a property no part of the
+        circuit takes is refused with those they take. Returns the circuit.
         """
         if isinstance(fluid, BaseModel):
             values = {k: getattr(fluid, k) for k in type(fluid).model_fields}
         elif isinstance(fluid, Mapping):
-            values = dict(fluid)
+            values = {**(self._fluid or {}), **fluid}
         else:
             raise CircuitError(f"circuit {self.path!r}: use_fluid takes a fluid (Fluid(...)) or "
                                f"a mapping of its properties, got {type(fluid).__name__}")
+        taken = set()
+        for _, comp in _leaves(self):
+            taken.update(type(comp.params).model_fields)
+        unknown = sorted(k for k in (fluid if isinstance(fluid, Mapping) else ())
+                         if k not in taken)
+        if taken and unknown:
+            known = sorted(k for k in taken if k in _FLUID_NAMES)
+            raise CircuitError(f"circuit {self.path!r}: no part takes the fluid property "
+                               f"{', '.join(map(repr, unknown))}; its parts take "
+                               f"{', '.join(known) or 'none'}")
         self._fluid = values
-        self._apply_fluid(values)
+        self._apply_fluid(values, override)
         return self
 
-    def _apply_fluid(self, values):
+    def _apply_fluid(self, values, override=False):
         for name, child in self._components.items():
             if isinstance(child, Circuit):
                 if child._fluid is None:
-                    child._apply_fluid(values)
+                    child._apply_fluid(values, override)
             else:
-                _fluid_into(child, values, f"{self.path}.{name}" if self._parent else name)
+                _fluid_into(child, values, f"{self.path}.{name}" if self._parent else name,
+                            override)
 
     def _inherited_fluid(self):
         node = self
@@ -921,13 +935,18 @@ def _symbols_read(root) -> set:
     return found
 
 
-def _fluid_into(comp, values, where):
+#: the names of fluid properties the parts of the library take (for use_fluid's message)
+_FLUID_NAMES = frozenset(("rho", "nu", "beta", "air", "kappa", "p_vap", "p_atm", "dp_cav",
+                          "p_min_abs"))
+
+
+def _fluid_into(comp, values, where, override=False):
     """Give ``comp`` the fluid properties of ``values`` its parameter model takes and its
-    builder did not give (``model_fields_set``), validated by the model; the fields stay
-    "not given", so another fluid replaces them."""
+    builder did not give (``model_fields_set``; all with ``override``), validated by the
+    model; the fields stay "not given", so another fluid replaces them."""
     p = comp.params
     fields = type(p).model_fields
-    given = p.model_fields_set
+    given = p.model_fields_set - (set(values) if override else set())
     update = {k: v for k, v in values.items() if k in fields and k not in given}
     if not update:
         return

@@ -137,3 +137,26 @@ def test_a_circuit_fluid_reaches_every_part_that_was_not_given_its_own():
     with pytest.raises(ParameterError, match=r"(?s)o: the circuit.s fluid does not fit.*Orifice.*"
                                              r"rho = 5.0"):
         _orifice_circuit().use_fluid({"rho": 5.0})
+
+
+def test_use_fluid_overrides_builders_values_when_asked_and_refuses_unknown_properties():
+    """The PVG 32 builders give their parts the report's oil: use_fluid leaves those, and
+    override=True replaces them (beta of a chamber, 7000 -> 10000 bar); a mapping adds to the
+    circuit's fluid; a property no part takes is refused with those they take."""
+    from pvgraph import Circuit, CircuitError
+    from pvgraph.circuits.pvg32.parameters import report_tuned
+    from pvgraph.circuits.rig import build_rig
+    from pvgraph.components import Fluid, Orifice
+    rig = build_rig(report_tuned())
+    before = rig["pvg.pvb.V2"].params.beta
+    rig.use_fluid(Fluid(beta=1e9))
+    assert rig["pvg.pvb.V2"].params.beta == before
+    rig.use_fluid(Fluid(beta=1e9), override=True)
+    assert rig["pvg.pvb.V2"].params.beta == 1e9
+    c = Circuit("x")
+    c.add("o", Orifice(A="1 mm^2"))
+    c.use_fluid({"rho": 900.0}).use_fluid({"nu": 1e-6})
+    assert (c["o"].params.rho, c["o"].params.nu) == (900.0, 1e-6)
+    with pytest.raises(CircuitError, match=r"no part takes the fluid property 'density'; its "
+                                           r"parts take nu, rho"):
+        c.use_fluid({"density": 900.0})
