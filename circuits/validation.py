@@ -86,9 +86,9 @@ class ScenarioResult:
     params: PVG32Params | None = field(default=None, repr=False)
     #: the warnings of the run, ``(category, message)``, re-issued once by :func:`validate`
     warned: list = field(default_factory=list, repr=False)
-    #: [s] the end of the run whose values are compared: SETTLE_TIME, or later for a run
-    #: without a step that was not steady then (see RUN_ON)
-    compared_at: float = SETTLE_TIME
+    #: [s] where a run without a step was not steady at its end and ran on (see RUN_ON): the
+    #: end of the run whose values are compared; else None
+    compared_at: float | None = None
 
     @property
     def scenario(self) -> Scenario:
@@ -149,7 +149,7 @@ def run_scenario(scenario: Scenario | str, params: PVG32Params | None = None, *,
     dp_l3 = trace["load.f.port.p"] - trace["load.b.port.p"]
     return ScenarioResult(scenario.name, simulated, margins, trace.t[window] - t_ref,
                           dp_l3[window], settled, deviation, wall, trace.stats.get("nsteps", 0),
-                          params=p, compared_at=float(sol.t[-1]) if not step else settle)
+                          params=p, compared_at=float(sol.t[-1]) if sol is not trace else None)
 
 
 def _settled(sol, settle, step):
@@ -237,7 +237,8 @@ def validate(params: PVG32Params | None = None, names: list[str] | None = None, 
 
 
 def comparison_records(results, roles: dict | None = None) -> list[dict]:
-    """``{scenario, quantity, unit, measured, simulated, error, role, report_simulated}``.
+    """``{scenario, quantity, unit, measured, simulated, error, role, report_simulated}``, and
+    ``compared_at_s`` where a run without a step was compared after running on (see RUN_ON).
 
     Table units (bar, L/min); ``roles`` maps ``(scenario, quantity)`` to its role (default: the
     tuned preset's, :func:`pvgraph.circuits.crossval.tuned_roles`).
@@ -255,6 +256,8 @@ def comparison_records(results, roles: dict | None = None) -> list[dict]:
                    "error": None if simulated is None else round(float(simulated - measured), 4),
                    "role": roles[(r.name, q)],
                    "report_simulated": _report_value(s, q)}
+            if r.compared_at is not None:      # not steady at its end: ran on, see RUN_ON
+                rec["compared_at_s"] = r.compared_at
             out.append(rec)
     return out
 
@@ -394,8 +397,7 @@ def format_table(results, roles: dict | None = None) -> str:
                 text += f" ({ref:.2f})"
             text += f" {code[roles[(r.name, q)]]}"
             cells.append(f"{text:>{width}s}")
-        later = f" (values at {r.compared_at:g} s)" if r.compared_at > SETTLE_TIME + 1e-9 \
-            else ""
+        later = f" (values at {r.compared_at:g} s)" if r.compared_at is not None else ""
         lines.append(f"{r.name:9s} {s.U_input:6.2f} | " + " | ".join(cells) +
                      f" | {'yes' if r.settled else 'NO'}{later}")
     lines.append("each cell: measured simulated (report's simulation, where tabulated) role: "

@@ -186,3 +186,6 @@ def test_a_sweep_point_not_steady_at_8_s_is_compared_at_its_steady_state():
     assert longer.settled
     assert r.simulated["Pf"] == pytest.approx(longer.simulated["Pf"], rel=1e-6)
     assert r.simulated["Q_total"] == pytest.approx(longer.simulated["Q_total"], rel=1e-6)
+    from pvgraph.circuits.validation import comparison_records
+    assert {rec.get("compared_at_s") for rec in comparison_records([r])} == {24.0}
+    assert all("compared_at_s" not in rec for rec in comparison_records([longer]))
