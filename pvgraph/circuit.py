@@ -173,18 +173,29 @@ class Circuit:
             raise CircuitError(f"circuit {self.path!r}: no part takes the fluid property "
                                f"{', '.join(map(repr, unknown))}; its parts take "
                                f"{', '.join(known) or 'none'}")
+        if not isinstance(override, bool):
+            raise CircuitError(f"circuit {self.path!r}: use_fluid(override=...) takes True or "
+                               f"False, got {override!r}")
+        updates = self._fluid_updates(values, bool(override))   # all checked before any is set
+        for comp, params in updates:
+            comp.params = params
         self._fluid = values
-        self._apply_fluid(values, override)
         return self
 
-    def _apply_fluid(self, values, override=False):
+    def _fluid_updates(self, values, override=False) -> list:
+        """``[(component, new parameter model)]`` of the parts taking ``values`` (see
+        :func:`_fluid_into`), raising before anything is changed."""
+        out = []
         for name, child in self._components.items():
             if isinstance(child, Circuit):
                 if child._fluid is None:
-                    child._apply_fluid(values, override)
+                    out.extend(child._fluid_updates(values, override))
             else:
-                _fluid_into(child, values, f"{self.path}.{name}" if self._parent else name,
-                            override)
+                new = _fluid_into(child, values, f"{self.path}.{name}" if self._parent else name,
+                                  override)
+                if new is not None:
+                    out.append((child, new))
+        return out
 
     def _inherited_fluid(self):
         node = self
@@ -216,16 +227,20 @@ class Circuit:
         if component._parent is not None:
             raise CircuitError(f"{type(component).__name__} {component.path!r} is already part of "
                                f"a circuit; create a new instance for {name!r}")
-        component._name = name
-        component._parent = self
-        self._components[name] = component
         fluid = self._inherited_fluid()
+        updates = []        # the circuit's fluid for the new part(s), checked before adding
         if fluid is not None:
             if isinstance(component, Circuit):
                 if component._fluid is None:
-                    component._apply_fluid(fluid)
+                    updates = component._fluid_updates(fluid)
             else:
-                _fluid_into(component, fluid, name)
+                new = _fluid_into(component, fluid, name)
+                updates = [(component, new)] if new is not None else []
+        for comp, params in updates:
+            comp.params = params
+        component._name = name
+        component._parent = self
+        self._components[name] = component
         return component
 
     def connect(self, *ports) -> None:
@@ -941,15 +956,16 @@ _FLUID_NAMES = frozenset(("rho", "nu", "beta", "air", "kappa", "p_vap", "p_atm",
 
 
 def _fluid_into(comp, values, where, override=False):
-    """Give ``comp`` the fluid properties of ``values`` its parameter model takes and its
-    builder did not give (``model_fields_set``; all with ``override``), validated by the
-    model; the fields stay "not given", so another fluid replaces them."""
+    """The parameter model of ``comp`` with the fluid properties of ``values`` its model takes
+    and its builder did not give (``model_fields_set``; all with ``override``), validated by
+    the model (the fields stay "not given", so another fluid replaces them), or None where
+    nothing changes."""
     p = comp.params
     fields = type(p).model_fields
     given = p.model_fields_set - (set(values) if override else set())
     update = {k: v for k, v in values.items() if k in fields and k not in given}
     if not update:
-        return
+        return None
     from pydantic import ValidationError
 
     from .component import _describe_validation
@@ -959,7 +975,7 @@ def _fluid_into(comp, values, where, override=False):
         raise ParameterError(f"{where}: the circuit's fluid does not fit: " + _describe_validation(
             type(comp).__name__, exc, list(fields), update, type(p))) from None
     object.__setattr__(new, "__pydantic_fields_set__", set(given))
-    comp.params = new
+    return new
 
 
 def _no_reference_message(circuit: Circuit, islands: list[dict]) -> str:

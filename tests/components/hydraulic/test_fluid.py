@@ -160,3 +160,24 @@ def test_use_fluid_overrides_builders_values_when_asked_and_refuses_unknown_prop
     with pytest.raises(CircuitError, match=r"no part takes the fluid property 'density'; its "
                                            r"parts take nu, rho"):
         c.use_fluid({"density": 900.0})
+
+
+def test_a_fluid_a_part_refuses_changes_nothing():
+    """{"rho": 900, "beta": 1e3}: the orifice would take rho, the volume refuses beta: the
+    error names the volume, and no part nor the circuit's fluid has changed; a part added to a
+    circuit whose fluid it refuses is not added."""
+    from pvgraph import Circuit, CircuitError, ParameterError
+    from pvgraph.components import Orifice, VolumeNode
+    c = Circuit("x")
+    c.add("o", Orifice(A="1 mm^2"))
+    c.add("node", VolumeNode(V="1 L"))
+    with pytest.raises(ParameterError, match=r"node: the circuit's fluid does not fit"):
+        c.use_fluid({"rho": 900.0, "beta": 1e3})
+    assert c["o"].params.rho == 870.0 and c._fluid is None
+    with pytest.raises(CircuitError, match=r"override=\.\.\.\) takes True or False"):
+        c.use_fluid({"rho": 900.0}, override="yes")
+    d = Circuit("y")
+    d.use_fluid({"beta": 1e3})          # no part yet: kept for the parts added later
+    with pytest.raises(ParameterError, match="the circuit's fluid does not fit"):
+        d.add("node", VolumeNode(V="1 L"))
+    assert "node" not in d
