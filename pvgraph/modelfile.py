@@ -370,6 +370,13 @@ class _Loader:
             except CircuitError as exc:
                 raise self.fail(here + ("start",), str(exc)) from None
             self.add(c, cname, comp, here)
+        if entry.fluid:
+            from .circuit import _leaves
+            taken = {f for _, comp in _leaves(c) for f in type(comp.params).model_fields}
+            unknown = sorted(k for k in entry.fluid if k not in taken)
+            if unknown and taken:
+                raise self.fail(loc + ("fluid",), f"no part takes the fluid property "
+                                                  f"{', '.join(map(repr, unknown))}")
         for k, refs in enumerate(entry.connections):
             try:
                 c.connect(*refs)

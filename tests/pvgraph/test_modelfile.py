@@ -221,6 +221,10 @@ def test_a_fluid_in_the_file_reaches_the_parts_not_given_their_own(tmp_path):
     assert sol.final("node.port.p") == pytest.approx(1000 / 2 * (q / (0.6 * 2e-6)) ** 2, rel=1e-3)
     back = load(save(c, tmp_path / "again.toml"))
     assert to_dict(back) == to_dict(c)
+    typo = TEXT.replace('name = "demo"', 'name = "demo"\nfluid = { density = 1000 }')
+    with pytest.raises(ModelFileError, match=r"line 4 \(fluid\): no part takes the fluid "
+                                             r"property 'density'"):
+        loads(typo, source="typo.toml")
     bad = TEXT.replace('name = "demo"', 'name = "demo"\nfluid = { rho = 5 }')
     with pytest.raises(ModelFileError, match=r"(?s)bad.toml, line 4 \(fluid\): orifice: .*rho = 5"):
         loads(bad, source="bad.toml")
