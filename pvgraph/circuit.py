@@ -153,8 +153,10 @@ class Circuit:
         names (``rho``, ``nu``, ``beta``, ``air``, ...). A value given to the part itself wins
         (parts built by a function that passes its own values, the PVG 32's, keep them), unless
         ``override``: then the fluid replaces those too. A sub-circuit with a fluid of its own
-        keeps it. A mapping adds to the circuit's fluid so far; a property no part of the
-        circuit takes is refused with those they take. Returns the circuit.
+        keeps it. A mapping adds to the circuit's fluid so far; a name that is not a fluid
+        property (``rho``, ``nu``, ``beta``, ``air``, ``kappa``, ``p_vap``, ``p_atm``,
+        ``dp_cav``, ``p_min_abs``), or a value a part declaring it would refuse, is refused
+        before anything changes. Returns the circuit.
         """
         if isinstance(fluid, BaseModel):
             values = {k: getattr(fluid, k) for k in type(fluid).model_fields}
@@ -163,16 +165,12 @@ class Circuit:
         else:
             raise CircuitError(f"circuit {self.path!r}: use_fluid takes a fluid (Fluid(...)) or "
                                f"a mapping of its properties, got {type(fluid).__name__}")
-        taken = set()
-        for _, comp in _leaves(self):
-            taken.update(type(comp.params).model_fields)
-        unknown = sorted(k for k in (fluid if isinstance(fluid, Mapping) else ())
-                         if k not in taken)
-        if taken and unknown:
-            known = sorted(k for k in taken if k in _FLUID_NAMES)
-            raise CircuitError(f"circuit {self.path!r}: no part takes the fluid property "
-                               f"{', '.join(map(repr, unknown))}; its parts take "
-                               f"{', '.join(known) or 'none'}")
+        unknown = sorted(k for k in values if k not in _FLUID_NAMES)
+        if unknown:
+            raise CircuitError(f"circuit {self.path!r}: {', '.join(map(repr, unknown))} "
+                               f"{'is not a fluid property' if len(unknown) == 1 else 'are not fluid properties'}"
+                               f"; a fluid has {', '.join(sorted(_FLUID_NAMES))}")
+        _check_fluid_values(self, values)
         if not isinstance(override, bool):
             raise CircuitError(f"circuit {self.path!r}: use_fluid(override=...) takes True or "
                                f"False, got {override!r}")
@@ -950,9 +948,20 @@ def _symbols_read(root) -> set:
     return found
 
 
-#: the names of fluid properties the parts of the library take (for use_fluid's message)
+#: the names of the fluid properties the parts of the library take (use_fluid takes these)
 _FLUID_NAMES = frozenset(("rho", "nu", "beta", "air", "kappa", "p_vap", "p_atm", "dp_cav",
                           "p_min_abs"))
+
+
+def _check_fluid_values(circuit, values) -> None:
+    """Each fluid property checked by the parameter model of a part that declares it (a part
+    given its own value, too), so that a value no part could take is refused now rather than
+    where a part is added or ``override`` is asked later."""
+    done = set()
+    for path, comp in _leaves(circuit):
+        for k in values.keys() & type(comp.params).model_fields.keys() - done:
+            _fluid_into(comp, {k: values[k]}, path, override=True)    # raises, changes nothing
+            done.add(k)
 
 
 def _fluid_into(comp, values, where, override=False):

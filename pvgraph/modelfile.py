@@ -205,7 +205,10 @@ def _node_dict(node: Circuit, known) -> dict:
             continue
         fields = type(child.params).model_fields
         params = {}
+        from_fluid = set(node._inherited_fluid() or ()) - child.params.model_fields_set
         for key, info in fields.items():
+            if key in from_fluid:       # the circuit's fluid gives it (written once, there)
+                continue
             value = getattr(child.params, key)
             if value is None and info.default is None:
                 continue
@@ -223,7 +226,7 @@ def _node_dict(node: Circuit, known) -> dict:
         out["expose"] = {name: {"port": _relative(ref, node), "description": desc}
                          for name, (ref, desc) in node._exposed.items()}
     if node._fluid is not None:
-        out["fluid"] = {k: _value(v, None) if isinstance(v, (int, float)) else v
+        out["fluid"] = {k: v if isinstance(v, (str, bool)) else _value(float(v), None)
                         for k, v in node._fluid.items()}
     return out
 
@@ -371,12 +374,12 @@ class _Loader:
                 raise self.fail(here + ("start",), str(exc)) from None
             self.add(c, cname, comp, here)
         if entry.fluid:
-            from .circuit import _leaves
-            taken = {f for _, comp in _leaves(c) for f in type(comp.params).model_fields}
-            unknown = sorted(k for k in entry.fluid if k not in taken)
-            if unknown and taken:
-                raise self.fail(loc + ("fluid",), f"no part takes the fluid property "
-                                                  f"{', '.join(map(repr, unknown))}")
+            from .circuit import _FLUID_NAMES
+            unknown = sorted(k for k in entry.fluid if k not in _FLUID_NAMES)
+            if unknown:
+                raise self.fail(loc + ("fluid",), f"{', '.join(map(repr, unknown))}: not a "
+                                                  f"fluid property; a fluid has "
+                                                  f"{', '.join(sorted(_FLUID_NAMES))}")
         for k, refs in enumerate(entry.connections):
             try:
                 c.connect(*refs)

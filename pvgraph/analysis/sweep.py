@@ -801,6 +801,9 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
         if backend != "dask" and not hasattr(signal, "setitimer"):
             raise SweepError(f"timeout= needs SIGALRM for backend {backend!r} (not on this "
                              f"system); use backend='dask'")
+    for flag, value in (("resume", resume), ("overwrite", overwrite)):
+        if not isinstance(value, bool):
+            raise SweepError(f"{flag} takes True or False, got {value!r}")
     if resume and out is None:
         raise SweepError("resume=True needs out= (the folder holding cases.jsonl)")
     if resume and overwrite:

@@ -221,9 +221,20 @@ def test_a_fluid_in_the_file_reaches_the_parts_not_given_their_own(tmp_path):
     assert sol.final("node.port.p") == pytest.approx(1000 / 2 * (q / (0.6 * 2e-6)) ** 2, rel=1e-3)
     back = load(save(c, tmp_path / "again.toml"))
     assert to_dict(back) == to_dict(c)
+    # the fluid's values are written once, in its table: an edit there reaches the parts
+    again = (tmp_path / "again.toml").read_text()
+    assert "rho = 1000" in again and again.count("rho") == 1
+    edited = again.replace("rho = 1000", "rho = 500")
+    assert loads(edited)["orifice"].params.rho == 500.0
+    # a Fluid with every property and numpy numbers save and load
+    import numpy as np
+    from pvgraph.components import Fluid
+    full = load(path)
+    full.use_fluid(Fluid(rho=np.float64(950.0)))
+    assert load(save(full, tmp_path / "full.toml"))["orifice"].params.rho == 950.0
     typo = TEXT.replace('name = "demo"', 'name = "demo"\nfluid = { density = 1000 }')
-    with pytest.raises(ModelFileError, match=r"line 4 \(fluid\): no part takes the fluid "
-                                             r"property 'density'"):
+    with pytest.raises(ModelFileError, match=r"line 4 \(fluid\): 'density': not a fluid "
+                                             r"property"):
         loads(typo, source="typo.toml")
     bad = TEXT.replace('name = "demo"', 'name = "demo"\nfluid = { rho = 5 }')
     with pytest.raises(ModelFileError, match=r"(?s)bad.toml, line 4 \(fluid\): orifice: .*rho = 5"):

@@ -142,7 +142,7 @@ def test_a_circuit_fluid_reaches_every_part_that_was_not_given_its_own():
 def test_use_fluid_overrides_builders_values_when_asked_and_refuses_unknown_properties():
     """The PVG 32 builders give their parts the report's oil: use_fluid leaves those, and
     override=True replaces them (beta of a chamber, 7000 -> 10000 bar); a mapping adds to the
-    circuit's fluid; a property no part takes is refused with those they take."""
+    circuit's fluid; a name that is not a fluid property is refused."""
     from pvgraph import Circuit, CircuitError
     from pvgraph.circuits.pvg32.parameters import report_tuned
     from pvgraph.circuits.rig import build_rig
@@ -157,8 +157,8 @@ def test_use_fluid_overrides_builders_values_when_asked_and_refuses_unknown_prop
     c.add("o", Orifice(A="1 mm^2"))
     c.use_fluid({"rho": 900.0}).use_fluid({"nu": 1e-6})
     assert (c["o"].params.rho, c["o"].params.nu) == (900.0, 1e-6)
-    with pytest.raises(CircuitError, match=r"no part takes the fluid property 'density'; its "
-                                           r"parts take nu, rho"):
+    with pytest.raises(CircuitError, match=r"'density' is not a fluid property; a fluid has "
+                                           r"air, beta"):
         c.use_fluid({"density": 900.0})
 
 
@@ -181,3 +181,21 @@ def test_a_fluid_a_part_refuses_changes_nothing():
     with pytest.raises(ParameterError, match="the circuit's fluid does not fit"):
         d.add("node", VolumeNode(V="1 L"))
     assert "node" not in d
+
+
+def test_use_fluid_takes_fluid_properties_only_and_checks_each_value():
+    """A misspelt or non-fluid key (rhoo, Cd, an orifice's parameters) is refused, on an empty
+    circuit too; a value no part could take is refused at once, though every part has its own
+    (beta "5 bar" on the PVG 32 rig, below the 10 bar a bulk modulus takes)."""
+    from pvgraph import Circuit, CircuitError, ParameterError
+    from pvgraph.circuits.pvg32.parameters import report_tuned
+    from pvgraph.circuits.rig import build_rig
+    from pvgraph.components import Orifice
+    for bad in ({"rhoo": 900.0}, {"Cd": 0.7}):
+        with pytest.raises(CircuitError, match="not a fluid property; a fluid has air, beta"):
+            Circuit("e").use_fluid(bad)
+    with pytest.raises(CircuitError, match="are not fluid properties"):
+        Circuit("e").use_fluid(Orifice(A=5e-6).params)
+    with pytest.raises(ParameterError, match=r"(?s)pvg.pvp.Vp: the circuit's fluid does not "
+                                             r"fit.*beta = '5 bar'"):
+        build_rig(report_tuned()).use_fluid({"beta": "5 bar"})

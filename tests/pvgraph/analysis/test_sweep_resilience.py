@@ -209,3 +209,11 @@ def test_a_folder_holding_an_earlier_sweep_is_not_overwritten_unasked(tmp_path):
     assert other[0].outputs["y"] == 25.0 and len(_lines(tmp_path / "cases.jsonl")) == 2
     with pytest.raises(SweepError, match="give one of them"):
         sweep(square, grid({"x": [5.0]}), backend="serial", out=tmp_path, overwrite=True, resume=True)
+
+
+def test_resume_and_overwrite_take_bools_only(tmp_path):
+    sweep(square, grid({"x": [1.0, 2.0]}), backend="serial", out=tmp_path)
+    for flag, value in (("overwrite", "no"), ("overwrite", 1), ("resume", "yes")):
+        with pytest.raises(SweepError, match=f"{flag} takes True or False, got {value!r}"):
+            sweep(square, grid({"x": [5.0]}), backend="serial", out=tmp_path, **{flag: value})
+    assert len(_lines(tmp_path / "cases.jsonl")) == 3        # nothing replaced
