@@ -11,6 +11,7 @@ import sys
 import tempfile
 import types
 import warnings
+from collections.abc import Mapping
 from typing import Iterable
 
 import numpy as np
@@ -306,6 +307,12 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
                            f"({t_start!r})")
     _check_options(options, solver)
     solve = _solver_function(solver)        # an optional backend missing: told before compiling
+    if start is not None and not isinstance(start, Mapping):
+        raise PvgraphError(f"simulate: start takes a mapping {{variable name: value}} "
+                           f"(start={{'node.port.p': '5 bar'}}), got {type(start).__name__}")
+    if t_eval is not None and np.size(t_eval) == 0:
+        raise PvgraphError("simulate: t_eval is empty; give the output times, or None for "
+                           "every step")
     rtol = _tolerance(rtol, "rtol")
     if atol is not None:
         atol = _tolerance(atol, "atol", per_variable=True)

@@ -143,9 +143,14 @@ class ReliefValve(Component):
                 from pvgraph.errors import ParameterError
                 raise ParameterError(f"ReliefValve.from_setting: {name} must be positive, got "
                                      f"{value!r}")
-        fields = cls.Params.model_fields
-        cd = float(params.get("Cd", fields["Cd"].default))
-        rho = float(params.get("rho", fields["rho"].default))
+        for name in ("A_s", "k", "x_max", "w", "theta", "p_crack"):
+            if name in params:
+                from pvgraph.errors import ParameterError
+                raise ParameterError(f"ReliefValve.from_setting chooses {name} from the setting; "
+                                     f"give the spool's parameters to ReliefValve(...) instead")
+        # the fluid and the discharge coefficient as the valve's model reads them (units, bounds)
+        fixed = cls(p_crack=1e7, A_s=2e-5, k=2e4, x_max=1e-3, w=5e-3, **params).params
+        cd, rho = fixed.Cd, fixed.rho
         x_max, a_s = 1e-3, 20e-6
         a_open = Q / (cd * math.sqrt(2.0 * (p_crack + dp_o) / rho))
         return cls(p_crack=p_crack, A_s=a_s, k=dp_o * a_s / x_max, x_max=x_max,

@@ -53,7 +53,15 @@ def _as_mask(algebraic, n):
         return a.copy()
     mask = np.zeros(n, dtype=bool)
     if a.size:
+        if a.dtype.kind not in "iu" and not (a.dtype.kind == "f" and np.all(a == np.round(a))):
+            raise ValueError(f"algebraic must be a boolean mask of {n} values or a list of "
+                             f"indices, got {algebraic!r}")
         idx = a.astype(int).ravel()
+        if idx.size == n and n > 1 and set(idx.tolist()) <= {0, 1} and \
+                len(set(idx.tolist())) < idx.size:
+            raise ValueError(f"algebraic = {list(algebraic)!r} reads as a list of indices "
+                             f"(y[0], y[1]), not as a mask: give indices "
+                             f"({np.flatnonzero(idx).tolist()}) or booleans")
         if idx.min() < -n or idx.max() >= n:
             raise ValueError(f"algebraic indices {idx.tolist()} out of range for n = {n}")
         mask[idx] = True

@@ -282,3 +282,8 @@ def test_a_prefix_on_a_unit_that_takes_none_is_told_with_the_factor(text, hint):
     with pytest.raises(UnitError) as info:
         to_si("1 degC")
     assert "did you mean" not in str(info.value)      # not a misspelt 'deg'
+
+
+def test_a_gauge_or_absolute_mark_is_refused_not_read_as_grams():
+    with pytest.raises(UnitError, match="a gauge or absolute mark is not read"):
+        to_si("10 bar(g)")

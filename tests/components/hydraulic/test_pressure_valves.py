@@ -238,3 +238,13 @@ def test_a_relief_setting_that_is_not_positive_is_refused():
         ReliefValve.from_setting("200 bar", "60 L/min", "0 bar")
     with pytest.raises(ParameterError, match="is a pressure|dimension|p_crack"):
         ReliefValve.from_setting("200 L/min", "60 L/min", "15 bar")
+
+
+def test_from_setting_checks_the_fluid_and_refuses_the_spool_it_chooses():
+    from pvgraph import ParameterError
+    with pytest.raises(ParameterError, match=r"invalid parameters for ReliefValve:\n  Cd = 0"):
+        ReliefValve.from_setting("200 bar", "60 L/min", "15 bar", Cd=0)
+    with pytest.raises(ParameterError, match="from_setting chooses k from the setting"):
+        ReliefValve.from_setting("200 bar", "60 L/min", "15 bar", k=5e4)
+    assert ReliefValve.from_setting("200 bar", "60 L/min", "15 bar",
+                                    rho="900 kg/m^3").params.rho == 900.0

@@ -330,3 +330,17 @@ def test_an_index_two_dae_runs_from_a_consistent_start():
                                                   "satisfy it"):
         solve_dae(pendulum, (0.0, 1.0), y0 + np.array([0, 0, 0.1, 0, 0]), yp0, algebraic=[4],
                   suppress_alg=True)
+
+
+def test_an_algebraic_list_of_zeros_and_ones_is_not_taken_for_a_mask():
+    """[0, 0, 0, 0, 1] reads as the indices 0 and 1, not as a mask of y[4]: refused, naming
+    the indices meant; non-integers are refused by name."""
+    def f(t, y, yp):
+        return np.r_[yp[:4] + y[:4], y[4] - 1.0]
+    y0, yp0 = np.r_[np.ones(4), 1.0], np.r_[-np.ones(4), 0.0]
+    with pytest.raises(ValueError, match=r"reads as a list of indices .* give indices \(\[4\]\)"):
+        solve_dae(f, (0.0, 0.1), y0, yp0, algebraic=[0, 0, 0, 0, 1])
+    with pytest.raises(ValueError, match="a boolean mask of 5 values or a list of indices"):
+        solve_dae(f, (0.0, 0.1), y0, yp0, algebraic=[0.5])
+    res = solve_dae(f, (0.0, 0.1), y0, yp0, algebraic=[4])
+    assert res.y[-1, 4] == pytest.approx(1.0)
