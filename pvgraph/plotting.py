@@ -156,9 +156,14 @@ def draw_circuit(circuit, path, *, fmt=None):
     extension of ``path``.
     """
     path = os.fspath(path)
+    if os.path.isdir(path):
+        from .errors import PvgraphError
+        raise PvgraphError(f"draw_circuit: {path!r} is a folder; give the file to write "
+                           f"(e.g. {os.path.join(path, circuit.name + '.png')!r})")
     fmt = fmt or (os.path.splitext(path)[1].lstrip(".").lower() or "png")
     nodes, edges, groups = _schematic(circuit)
     if fmt == "dot":
+        os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
         return _write_dot(circuit, nodes, edges, groups, path)
     if fmt not in ("png", "svg"):
         raise ValueError(f"draw_circuit: format {fmt!r}; choose png, svg or dot")

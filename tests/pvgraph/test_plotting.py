@@ -1,5 +1,7 @@
 """Plots write real PNG files of the data asked for; bad names fail before anything is written."""
 
+import os
+
 import matplotlib.image as mpimg
 import numpy as np
 import pytest
@@ -113,3 +115,12 @@ def test_every_part_of_a_sub_circuit_lies_inside_its_band():
     for n, (_, _, grp) in nodes.items():
         top, bottom = spans[grp]
         assert -bottom + 0.5 - 1e-12 <= pos[n][1] <= -top - 0.5 + 1e-12, (n, pos[n], spans[grp])
+
+
+def test_a_schematic_into_a_folder_is_refused_and_a_dot_file_makes_its_folder(tmp_path):
+    from pvgraph import PvgraphError
+    c = _demo()
+    with pytest.raises(PvgraphError, match="is a folder; give the file to write"):
+        draw_circuit(c, tmp_path)
+    out = draw_circuit(c, tmp_path / "new" / "c.dot")
+    assert os.path.exists(out)
