@@ -25,7 +25,7 @@ import warnings
 import numpy as np
 
 from .errors import SolverError, StructureError
-from .index_reduction import EVENT_OWNER, SWITCH_RATIO
+from .index_reduction import EVENT_OWNER, SWITCH_RATIO, derivative_name
 
 #: switches in one run before it stops (a choice flipping back and forth without progress)
 MAX_SWITCHES = 1000
@@ -64,21 +64,23 @@ def fired(res, names):
     return None
 
 
+def _order(name):
+    """``(base, order)`` of a derivative's name (``der(x, 2)`` -> ``("x", 2)``, ``x`` -> 0),
+    the inverse of :func:`pvgraph.index_reduction.derivative_name`."""
+    m = _DER.match(name)
+    return (name, 0) if m is None else (m.group(1), int(m.group(2) or 1))
+
+
 def _lower(name):
     """The variable whose time derivative ``name`` is (``der(x, 2)`` -> ``der(x)``), or None."""
-    m = _DER.match(name)
-    if m is None:
-        return None
-    base, order = m.group(1), int(m.group(2) or 1)
-    return base if order == 1 else (f"der({base})" if order == 2 else f"der({base}, {order - 1})")
+    base, order = _order(name)
+    return derivative_name(base, order - 1) if order else None
 
 
 def _higher(name):
     """The name of the time derivative of ``name`` (``x`` -> ``der(x)`` -> ``der(x, 2)``)."""
-    m = _DER.match(name)
-    if m is None:
-        return f"der({name})"
-    return f"der({m.group(1)}, {int(m.group(2) or 1) + 1})"
+    base, order = _order(name)
+    return derivative_name(base, order + 1)
 
 
 def _column(system, name, Y, YP):

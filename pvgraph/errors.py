@@ -71,14 +71,18 @@ class StructureWarning(UserWarning):
     """The circuit compiles, but part of its structure limits what a run represents."""
 
 
-def outside_stacklevel() -> int:
+def outside_stacklevel(inside: tuple = ()) -> int:
     """The ``stacklevel`` of :func:`warnings.warn` that points at the first caller outside
-    pvgraph (the line of the user's code that led to the warning), counted from the caller
-    of this function."""
+    pvgraph, the folders ``inside`` (a component library's) and pydantic's validators (the
+    line of the user's code that led to the warning), counted from the caller of this
+    function."""
     import os
     import sys
-    here = os.path.dirname(os.path.abspath(__file__)) + os.sep
+    skip = (os.path.dirname(os.path.abspath(__file__)) + os.sep,) + tuple(
+        os.path.abspath(d).rstrip(os.sep) + os.sep for d in inside)
     frame, level = sys._getframe(1), 1
-    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(here):
+    while frame is not None and (
+            os.path.abspath(frame.f_code.co_filename).startswith(skip) or
+            f"{os.sep}pydantic{os.sep}" in frame.f_code.co_filename):
         frame, level = frame.f_back, level + 1
     return level

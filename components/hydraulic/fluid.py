@@ -41,13 +41,14 @@ to any part. ``MINERAL_OIL`` holds the library defaults (ISO VG 32 mineral oil n
 
 from __future__ import annotations
 
+import os
 import warnings
 
 from pydantic import Field
 
 from pvgraph import expr as E
 from pvgraph.component import Params
-from pvgraph.errors import PlausibilityWarning
+from pvgraph.errors import PlausibilityWarning, outside_stacklevel
 from pvgraph.laws import smooth_max
 
 __all__ = ["Fluid", "FluidCompliance", "MINERAL_OIL", "P_ATM", "RHO", "NU",
@@ -150,20 +151,8 @@ def compliance(p, fp: FluidCompliance):
     return 1.0 / effective_bulk_modulus(p, fp) + cavitation_compliance(p, fp)
 
 
-def _caller_level() -> int:
-    """The ``stacklevel`` pointing at the first caller outside pvgraph and its component
-    library (the user's ``simulate`` call), counted from the caller of this function."""
-    import os
-    import sys
-    import pvgraph
-    inside = (os.path.dirname(os.path.abspath(pvgraph.__file__)) + os.sep,
-              os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep)
-    frame, level = sys._getframe(1), 1
-    while frame is not None and (
-            os.path.abspath(frame.f_code.co_filename).startswith(inside) or
-            f"{os.sep}pydantic{os.sep}" in frame.f_code.co_filename):   # a parameter validator
-        frame, level = frame.f_back, level + 1
-    return level
+#: the component library's folder: warnings point past it, at the user's call
+LIBRARY = (os.path.dirname(os.path.dirname(os.path.abspath(__file__))),)
 
 
 class CavitationWarning(PlausibilityWarning):
@@ -192,5 +181,5 @@ def cavitation_warning(v, p, fp: FluidCompliance, what: str, mode: str = "cavita
             f"{path}: the pressure in {what} falls to the vapour pressure ({vapour}){when}: "
             f"the oil cavitates there. Check the flow out of it (a load running "
             f"ahead of its supply, a motor overrunning) or add a make-up (anti-cavitation) "
-            f"check valve from tank."), stacklevel=_caller_level())
+            f"check valve from tank."), stacklevel=outside_stacklevel(LIBRARY))
     v.event("cavitation", condition, direction=-1, action=action)

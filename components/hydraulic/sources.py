@@ -29,14 +29,14 @@ class TankParams(Params):
         if abs(self.p0 - P_ATM) < 1.0:      # "1 atm", "101325 Pa": meant absolute, most likely
             import warnings
 
-            from pvgraph.errors import PlausibilityWarning
+            from pvgraph.errors import PlausibilityWarning, outside_stacklevel
 
-            from .fluid import _caller_level
+            from .fluid import LIBRARY
             warnings.warn(PlausibilityWarning(
                 f"p0 = {self.p0:g} Pa is one atmosphere above the atmosphere here: pressures "
                 f"in the library are gauge (0 = atmospheric, the absolute pressure is p + "
                 f"p_atm). An open reservoir is p0 = 0 (the default)."),
-                stacklevel=_caller_level())
+                stacklevel=outside_stacklevel(LIBRARY))
         return self
 
 

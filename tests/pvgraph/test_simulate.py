@@ -450,15 +450,7 @@ def test_the_package_simulate_pickles_by_name():
 
 
 def test_an_empty_t_eval_and_a_start_that_is_no_mapping_are_refused():
-    from pvgraph import Circuit, PvgraphError
-    from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
-    c = Circuit("demo")
-    c.add("pump", FlowSource(Q="6 L/min"))
-    c.add("node", VolumeNode(V="0.5 L"))
-    c.add("o", Orifice(A="2 mm^2"))
-    c.add("tank", Tank())
-    c.connect("pump.port", "node.port", "o.a")
-    c.connect("o.b", "tank.port")
+    c = demo()
     with pytest.raises(PvgraphError, match="t_eval is empty"):
         simulate(c, 0.1, t_eval=[])
     with pytest.raises(PvgraphError, match=r"start takes a mapping .* got list"):
