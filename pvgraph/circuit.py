@@ -152,8 +152,10 @@ class Circuit:
         names to values; a part takes the fields its parameter model declares under those
         names (``rho``, ``nu``, ``beta``, ``air``, ...). A value given to the part itself wins
         (parts built by a function that passes its own values, the PVG 32's, keep them), unless
-        ``override``: then the fluid replaces those too. A sub-circuit with a fluid of its own
-        keeps it. A mapping adds to the circuit's fluid so far; a name that is not a fluid
+        ``override``: then the fluid replaces those too. A sub-circuit's own fluid wins over
+        its parent's for the properties it gives; the others it takes from its parent's, now
+        and when the parent's changes. A mapping adds to the circuit's fluid so far; a name
+        that is not a fluid
         property (``rho``, ``nu``, ``beta``, ``air``, ``kappa``, ``p_vap``, ``p_atm``,
         ``dp_cav``, ``p_min_abs``), or a value a part declaring it would refuse, is refused
         before anything changes. Returns the circuit.
@@ -174,7 +176,9 @@ class Circuit:
         if not isinstance(override, bool):
             raise CircuitError(f"circuit {self.path!r}: use_fluid(override=...) takes True or "
                                f"False, got {override!r}")
-        updates = self._fluid_updates(values, bool(override))   # all checked before any is set
+        parent = self._parent._inherited_fluid() if self._parent is not None else None
+        # all checked before any is set
+        updates = self._fluid_updates({**(parent or {}), **values}, bool(override))
         for comp, params in updates:
             comp.params = params
         self._fluid = values
@@ -185,9 +189,8 @@ class Circuit:
         :func:`_fluid_into`), raising before anything is changed."""
         out = []
         for name, child in self._components.items():
-            if isinstance(child, Circuit):
-                if child._fluid is None:
-                    out.extend(child._fluid_updates(values, override))
+            if isinstance(child, Circuit):    # its own fluid's properties win
+                out.extend(child._fluid_updates({**values, **(child._fluid or {})}, override))
             else:
                 new = _fluid_into(child, values, f"{self.path}.{name}" if self._parent else name,
                                   override)
@@ -196,12 +199,15 @@ class Circuit:
         return out
 
     def _inherited_fluid(self):
+        """The fluid of this circuit: its own properties over those of the circuits around
+        it, or None where none has one."""
+        out = None
         node = self
         while node is not None:
             if node._fluid is not None:
-                return node._fluid
+                out = {**node._fluid, **(out or {})}
             node = node._parent
-        return None
+        return out
 
     def add(self, name: str, component):
         """Add ``component`` under ``name`` and return it."""
@@ -228,9 +234,8 @@ class Circuit:
         fluid = self._inherited_fluid()
         updates = []        # the circuit's fluid for the new part(s), checked before adding
         if fluid is not None:
-            if isinstance(component, Circuit):
-                if component._fluid is None:
-                    updates = component._fluid_updates(fluid)
+            if isinstance(component, Circuit):   # its own fluid's properties win
+                updates = component._fluid_updates({**fluid, **(component._fluid or {})})
             else:
                 new = _fluid_into(component, fluid, name)
                 updates = [(component, new)] if new is not None else []

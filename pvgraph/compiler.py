@@ -217,12 +217,13 @@ def _compile(circuit, eliminate_aliases, array_rows=None, choice_point=None):
 
     subs: dict[str, tuple] = {}
     why: dict[str, tuple] = {}
+    held: dict[str, tuple] = {}
     incidence = None
     if eliminate_aliases:
         incidence = []
         try:
             equations = _eliminate_aliases(equations, infos, subs, trace.values, found,
-                                           incidence, prov, why)
+                                           incidence, prov, why, held)
         except StructureError as exc:
             if unbalanced:    # the cause: it leads
                 raise StructureError(f"{_unbalanced_text(unbalanced)}\nWhat the structural "
@@ -251,6 +252,7 @@ def _compile(circuit, eliminate_aliases, array_rows=None, choice_point=None):
         raise
     system._circuit = circuit
     system._known_roles = roles     # for the no-reference check (Circuit.compile takes them)
+    system.held_rates = held
     system._components = dict(leaves)
     system._models = {path: comp.params for path, comp in leaves}
     return reduction.attach(system)
@@ -1098,7 +1100,7 @@ def _token(x):
 
 
 def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=None, prov=None,
-                       why=None):
+                       why=None, held=None):
     """Remove unknowns defined by affine one- and two-variable equations (in place on subs).
 
     The unknown removed must have a constant coefficient, so that no parameter value can make
@@ -1108,7 +1110,11 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
     per equation, taken over), if known. ``incidence``, a list, receives ``(values read,
     derivatives read)`` (sets of names) of each equation returned; ``why``, a dict, the label
     of the equation that removed each unknown and the unknown it was expressed in (None where
-    fixed to a value), for the messages of singular systems.
+    fixed to a value), for the messages of singular systems. ``held``, a dict, receives each
+    unknown whose rate an equation reads and that is fixed to an expression of parameters:
+    ``(names of those parameters, labels of the equations reading its rate)`` (the rate of
+    such an unknown is zero: a parameter changed as an input moves it without a rate, see
+    :attr:`System.held_rates`).
     """
     if why is None:
         why = {}
@@ -1319,6 +1325,20 @@ def _eliminate_aliases(equations, infos, subs, values, found=None, incidence=Non
         remaining = keep
     for name in subs:
         subs[name] = resolve(name)
+    if held is not None:
+        # an unknown fixed to a parametric value whose rate the equations read: its rate is
+        # zero in the compiled system, which holds as long as the parameters are constants
+        for name in used_der & subs.keys():
+            off = subs[name][2]
+            if off.__class__ is not float:
+                held[name] = tuple(sorted({nm for _, nm in E.leaves(off, ("param",))}))
+        if held:    # and the labels of the equations that read those rates
+            readers: dict[str, list] = {name: [] for name in held}
+            for eq, (_, ders) in zip(equations, found):
+                for name in ders & held.keys():
+                    readers[name].append(eq.label)
+            for name, params in held.items():
+                held[name] = (params, tuple(readers[name]))
     out = []
     for eq, expr, syms, ders, _, exact in remaining:
         if not (eliminated.isdisjoint(syms) and eliminated.isdisjoint(ders)):

@@ -107,6 +107,13 @@ class System:
     _ev_vecP: list = []
     _cmod = None            # the C form of the generated functions (pvgraph.cbackend), if used
     _cst = None             # its buffers for this system's parameters (one per thread)
+    #: unknown -> (the parameters it is fixed to an expression of, the labels of the
+    #: equations reading its rate), for each unknown the compiler fixed to parameters whose
+    #: rate the equations read (a position set by a constant, its velocity the position's
+    #: rate): its rate is zero while the parameters are constants, so a parameter used as the
+    #: input of a linear model may act through a rate the model does not hold (see
+    #: :func:`pvgraph.analysis.linearize.linearize`)
+    held_rates: dict = {}
 
     def __init__(self, name, names, differential, y0, nominal, units, descriptions, equations,
                  rows, cols, residual_fn, jac_fn, observed_fn, observed, event_fn, event_specs,

@@ -96,6 +96,17 @@ class Fluid(FluidCompliance):
     rho: float = rho_field()
     nu: float = nu_field()
 
+    def __init__(self, **values):
+        from pydantic import ValidationError
+
+        from pvgraph.component import _describe_validation
+        from pvgraph.errors import ParameterError
+        try:
+            super().__init__(**values)
+        except ValidationError as exc:     # told as a part's parameters are
+            raise ParameterError(_describe_validation(
+                "Fluid", exc, list(type(self).model_fields), values, type(self))) from None
+
     def args_for(self, component_class) -> dict:
         """The fields of this fluid that ``component_class`` takes, as keyword arguments."""
         fields = component_class.Params.model_fields

@@ -26,16 +26,19 @@ class TankParams(Params):
 
     @model_validator(mode="after")
     def _one_atmosphere_gauge(self):
-        if abs(self.p0 - P_ATM) < 1.0:      # "1 atm", "101325 Pa": meant absolute, most likely
+        # "1 atm", "1 bar", "14.7 psi", "101325 Pa": an atmosphere written absolute, most
+        # likely (2 % of one atmosphere holds them all)
+        if abs(self.p0 - P_ATM) <= 0.02 * P_ATM:
             import warnings
 
             from pvgraph.errors import PlausibilityWarning, outside_stacklevel
 
             from .fluid import LIBRARY
             warnings.warn(PlausibilityWarning(
-                f"p0 = {self.p0:g} Pa is one atmosphere above the atmosphere here: pressures "
-                f"in the library are gauge (0 = atmospheric, the absolute pressure is p + "
-                f"p_atm). An open reservoir is p0 = 0 (the default)."),
+                f"p0 = {self.p0:g} Pa is about one atmosphere above the atmosphere here: "
+                f"pressures in the library are gauge (0 = atmospheric, the absolute pressure "
+                f"is p + p_atm). An open reservoir is p0 = 0 (the default); a reservoir "
+                f"pressurised to about 1 bar gauge is as written."),
                 stacklevel=outside_stacklevel(LIBRARY))
         return self
 

@@ -440,7 +440,8 @@ def _jacobians(system, op):
 
 def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarray] | None,
               outputs: Sequence[str], *, states: str = "differential",
-              direct: Mapping[str, np.ndarray] | None = None) -> LinearModel:
+              direct: Mapping[str, np.ndarray] | None = None,
+              held: Mapping[str, Sequence[str]] | None = None) -> LinearModel:
     """Linearise ``system`` at ``op``.
 
     Parameters
@@ -459,6 +460,15 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
         moves with it directly; added to ``D``. For an input named as a runtime parameter
         of the system (``"orifice.A"``) the derived outputs' partial derivatives are taken
         from the compiled equations where ``direct`` does not give them.
+    held : mapping name -> unknown names, optional
+        The unknowns of :attr:`System.held_rates` each input moves (found by
+        :func:`linearize_circuit`; for an input named as a runtime parameter they are read
+        off ``system.held_rates``). Such an input sets an unknown whose rate the equations
+        read (a position set directly, its velocity that position's rate), so it also acts
+        through its own rate du/dt, which the model cannot hold: where that rate reaches
+        the states or the outputs asked for, the input is refused with the unknowns it sets;
+        where it reaches neither (a supply pressure whose rate only changes the flow into a
+        volume at that pressure, not asked for) the model is exact and is returned.
     """
     if states != "differential":
         raise PvgraphError(f"linearize: states={states!r}; the states are the differential "
@@ -485,6 +495,10 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
                                f"got {type(arg).__name__}")
     inputs = dict(inputs or {})
     direct = dict(direct or {})
+    held = {name: set(got) for name, got in dict(held or {}).items()}
+    for name in inputs:   # a parameter input: the unknowns it is known to fix
+        held.setdefault(name, set()).update(
+            v for v, (params, _) in system.held_rates.items() if name in params)
     for name, col in direct.items():
         if name not in inputs:
             raise PvgraphError(f"linearize: direct names {name!r}, which is not an input; the "
@@ -525,6 +539,8 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
     pos_z = {int(k): r for r, k in enumerate(z)}
     C = np.zeros((len(outputs), nx))
     D = np.zeros((len(outputs), len(inputs)))
+    # each output's dependence on [x', z] (for the check of the inputs' rates below)
+    W = np.zeros((len(outputs), n))
     for r, name in enumerate(outputs):
         real = system.resolve_name(name)
         if real in system.observed and real not in system.index:
@@ -539,6 +555,7 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
                     f"inputs' rates)")
             C[r] = gy[x] + gy[z] @ Zx + gyp[x] @ A
             D[r] = gy[z] @ Zu + gyp[x] @ B
+            W[r, :nx], W[r, nx:] = gyp[x], gy[z]
             # an input that is a parameter the output reads (an orifice's q against its
             # area): its partial derivative at fixed unknowns, unless given in ``direct``
             for j, u in enumerate(inputs):
@@ -553,6 +570,8 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
         else:
             C[r] = coef * Zx[pos_z[idx]]
             D[r] = coef * Zu[pos_z[idx]]
+            W[r, nx + pos_z[idx]] = coef
+    _check_rates(system, held, M, W, nx, outputs)
     for j, name in enumerate(inputs):
         if name in direct:
             D[:, j] += np.asarray(direct[name], dtype=float).reshape(len(outputs))
@@ -571,7 +590,8 @@ def input_sensitivity(build: Callable[[dict], object], u0: Mapping[str, float], 
 
 
 def _input_derivatives(build, u0, name, op, outputs, eps_rel=1e-5, du=None):
-    """``(dF/du, d outputs/du at fixed unknowns)`` of input ``name`` by central differences
+    """``(dF/du, d outputs/du at fixed unknowns, the unknowns of System.held_rates it moves)``
+    of input ``name`` by central differences
     of rebuilt systems at ``op``; at a bound of the input (a damping of 0, which the component
     refuses below) by one-sided second-order differences into the allowed side."""
     u0 = dict(u0)
@@ -586,6 +606,8 @@ def _input_derivatives(build, u0, name, op, outputs, eps_rel=1e-5, du=None):
                                f"system; linearise a build whose structure does not depend on it")
         values = []
         derived = None
+        # the unknowns fixed to parameters whose rates the equations read, at this value
+        held = {v: s.resolve(v)[2] for v in s.held_rates}
         for out in outputs:
             real = s.resolve_name(out)
             if real in s.observed and real not in s.index:
@@ -597,7 +619,12 @@ def _input_derivatives(build, u0, name, op, outputs, eps_rel=1e-5, du=None):
                 continue
             coef, idx, off = s.resolve(out)
             values.append(off + (0.0 if idx is None else coef * op.y[idx]))
-        return s.residual(op.t, op.y, op.yp), np.array(values, dtype=float)
+        return s.residual(op.t, op.y, op.yp), np.array(values, dtype=float), held
+
+    moved = set()
+
+    def rate_check(a, b):
+        moved.update(v for v in a[2] if a[2][v] != b[2].get(v))
 
     refused = {}
     for sign in (1.0, -1.0):
@@ -607,7 +634,8 @@ def _input_derivatives(build, u0, name, op, outputs, eps_rel=1e-5, du=None):
             refused[sign] = exc
     up, down = refused[1.0], refused[-1.0]
     if not isinstance(up, Exception) and not isinstance(down, Exception):
-        return (up[0] - down[0]) / (2.0 * h), (up[1] - down[1]) / (2.0 * h)
+        rate_check(up, down)
+        return (up[0] - down[0]) / (2.0 * h), (up[1] - down[1]) / (2.0 * h), moved
     if isinstance(up, Exception) and isinstance(down, Exception):
         raise PvgraphError(f"input {name!r} = {u0[name]!r}: neither {name} + {h:g} nor "
                            f"{name} - {h:g} is a valid value ({up}); give du={{{name!r}: "
@@ -617,9 +645,52 @@ def _input_derivatives(build, u0, name, op, outputs, eps_rel=1e-5, du=None):
     one = up if sign > 0 else down
     two = at(2.0 * sign * h)
     zero = at(0.0)
+    rate_check(two, zero)
     step = sign * h
     return ((-3.0 * zero[0] + 4.0 * one[0] - two[0]) / (2.0 * step),
-            (-3.0 * zero[1] + 4.0 * one[1] - two[1]) / (2.0 * step))
+            (-3.0 * zero[1] + 4.0 * one[1] - two[1]) / (2.0 * step), moved)
+
+
+def _check_rates(system, held, M, W, nx, outputs):
+    """Refuse an input that acts through its own rate on the states or on the outputs.
+
+    The rows reading the rate of an unknown an input fixes (``held``) are where du/dt would
+    enter; ``-M^-1`` maps a change of those rows to ``[x', z]``. Where that reaches a state's
+    rate or an output (``W``: each output's dependence on ``[x', z]``), the model would drop
+    a term (nonzero up to rounding: 1e-9 of the entries' scale).
+    """
+    row_of = {label: k for k, label in enumerate(system.equations)}
+    for name, moved in held.items():
+        rows = sorted({row_of[label] for v in moved
+                       for label in system.held_rates.get(v, ((), ()))[1] if label in row_of})
+        if not rows:
+            continue
+        E_ = np.zeros((M.shape[0], len(rows)))
+        E_[rows, range(len(rows))] = 1.0
+        G = np.linalg.solve(M, E_)
+        scale = np.abs(G).max(axis=0)
+        reaches = []
+        if np.any(np.abs(G[:nx]) > 1e-9 * scale):
+            reaches.append("the states' rates")
+        out = np.abs(W @ G) > 1e-9 * (np.abs(W) @ np.abs(G))
+        hit = [outputs[r] for r in np.flatnonzero(out.any(axis=1))]
+        if hit:
+            reaches.append("the output" + ("s " if len(hit) > 1 else " ") +
+                           ", ".join(repr(h) for h in hit))
+        if reaches:
+            raise PvgraphError(_rate_text(name, sorted(moved), " and ".join(reaches)))
+
+
+def _rate_text(name: str, moved, reaches: str) -> str:
+    """The refusal of an input that acts through its own rate."""
+    names = ", ".join(moved[:4]) + (f" and {len(moved) - 4} more" if len(moved) > 4 else "")
+    return (f"linearize: input {name!r} sets {names} directly (fixed to its value), and the "
+            f"equations read the rate of {'it' if len(moved) == 1 else 'them'} (a position "
+            f"set by the input, its velocity the position's rate): the input acts on "
+            f"{reaches} through its own rate du/dt, which a linear model x' = A x + B u, "
+            f"y = C x + D u does not hold. Take as the input what drives that motion through "
+            f"the circuit's dynamics (a force on the mass, a flow into the volume), or set "
+            f"the position through a stiff spring or a position controller.")
 
 
 def _si_number(value, what: str) -> float:
@@ -693,13 +764,14 @@ def linearize_circuit(build: Callable[[dict], object], u0: Mapping[str, float],
     if op is None:
         op = steady_state(system, y0=y0, tol=tol)
     du = dict(du or {})
-    cols, direct = {}, {}
+    cols, direct, held = {}, {}, {}
     for nm in u0:
-        cols[nm], direct[nm] = _input_derivatives(build, u0, nm, op, list(outputs), eps_rel,
-                                                  du.get(nm))
-    unused = [nm for nm in u0 if not np.any(cols[nm]) and not np.any(direct[nm])]
+        cols[nm], direct[nm], held[nm] = _input_derivatives(build, u0, nm, op, list(outputs),
+                                                            eps_rel, du.get(nm))
+    unused = [nm for nm in u0 if not np.any(cols[nm]) and not np.any(direct[nm])
+              and not held[nm]]
     if unused:
         warnings.warn(f"linearize_circuit: input(s) {unused} change nothing in the circuit "
                       f"(dF/du = 0): does build(u) read u[{unused[0]!r}]? The model's column "
                       f"for it is zero", UserWarning, stacklevel=2)
-    return linearize(system, op, cols, outputs, direct=direct)
+    return linearize(system, op, cols, outputs, direct=direct, held=held)

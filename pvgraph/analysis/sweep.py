@@ -806,6 +806,17 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
             raise SweepError(f"{flag} takes True or False, got {value!r}")
     if resume and out is None:
         raise SweepError("resume=True needs out= (the folder holding cases.jsonl)")
+    if overwrite and out is None:
+        raise SweepError("overwrite=True replaces the record in out=; give out= (a folder)")
+    if out is not None:
+        if isinstance(out, bytes) or not isinstance(out, (str, os.PathLike)):
+            raise SweepError(f"out takes a folder path (str or pathlib.Path), got "
+                             f"{type(out).__name__} {out!r}")
+        if not os.fspath(out).strip():
+            raise SweepError("out='' names no folder; give a folder path")
+        if os.path.exists(out) and not os.path.isdir(out):
+            raise SweepError(f"out={os.fspath(out)!r} is a file, not a folder; give a folder "
+                             f"for the sweep's record")
     if resume and overwrite:
         raise SweepError("resume=True keeps the record in out=, overwrite=True replaces it: "
                          "give one of them")
@@ -975,8 +986,10 @@ def _read_log(path, cases) -> dict[int, CaseResult]:
         first = next((k for k, (a, b) in enumerate(zip(recorded, same)) if a != b), None)
         detail = (f"; case {first} was {recorded[first]}, now {same[first]}"
                   if first is not None else "")
-        raise SweepError(f"--resume: {path} records another sweep ({head.get('n_cases')} cases "
-                         f"of {head.get('param_names')}); these are {len(cases)} cases of "
+        n_rec = head.get("n_cases")
+        raise SweepError(f"resume: {path} records another sweep ({n_rec} "
+                         f"case{'' if n_rec == 1 else 's'} of {head.get('param_names')}); these "
+                         f"are {len(cases)} case{'' if len(cases) == 1 else 's'} of "
                          f"{list(cases[0])}{detail}. Use the same arguments, or a new output "
                          f"folder")
     out = {}

@@ -139,6 +139,28 @@ def test_a_circuit_fluid_reaches_every_part_that_was_not_given_its_own():
         _orifice_circuit().use_fluid({"rho": 5.0})
 
 
+def test_a_sub_circuits_own_fluid_wins_for_its_properties_and_inherits_the_rest():
+    """A sub-circuit given its own density keeps it and follows its parent's bulk modulus,
+    also when the parent's changes later (it kept the parent's earlier one); a sub-circuit
+    added to a circuit with a fluid takes the properties it does not give."""
+    from pvgraph import Circuit
+    from pvgraph.components import Orifice, VolumeNode
+    top = Circuit("top")
+    top_node = top.add("tn", VolumeNode(V=1e-4))
+    sub = Circuit("sub")
+    node, orf = sub.add("n", VolumeNode(V=1e-4)), sub.add("o", Orifice(A=1e-6))
+    top.add("sub", sub)
+    top.use_fluid({"beta": "15000 bar", "rho": 900.0})
+    sub.use_fluid({"rho": 1000.0})
+    assert (orf.params.rho, node.params.beta) == (1000.0, 1.5e9)
+    top.use_fluid({"beta": "10000 bar", "rho": 850.0})
+    assert (top_node.params.beta, node.params.beta, orf.params.rho) == (1e9, 1e9, 1000.0)
+    later = Circuit("later").use_fluid({"rho": 800.0})
+    late_orf, late_node = later.add("o", Orifice(A=1e-6)), later.add("n", VolumeNode(V=1e-4))
+    top.add("later", later)
+    assert (late_orf.params.rho, late_node.params.beta) == (800.0, 1e9)
+
+
 def test_use_fluid_overrides_builders_values_when_asked_and_refuses_unknown_properties():
     """The PVG 32 builders give their parts the report's oil: use_fluid leaves those, and
     override=True replaces them (beta of a chamber, 7000 -> 10000 bar); a mapping adds to the
@@ -199,3 +221,13 @@ def test_use_fluid_takes_fluid_properties_only_and_checks_each_value():
     with pytest.raises(ParameterError, match=r"(?s)pvg.pvp.Vp: the circuit's fluid does not "
                                              r"fit.*beta = '5 bar'"):
         build_rig(report_tuned()).use_fluid({"beta": "5 bar"})
+    # a Fluid itself is checked as a part's parameters are: the field, the bound in units
+    from pvgraph.components import Fluid
+    with pytest.raises(ParameterError, match=r"invalid parameters for Fluid:\n  rho = -1: Input "
+                                             r"should be greater than 100 \[kg/m\^3\]"):
+        Fluid(rho=-1)
+    with pytest.raises(ParameterError, match=r"beta = '5 bar' \(500000 Pa\): must be greater "
+                                             r"than 1e\+06 Pa \(10 bar\)"):
+        Fluid(beta="5 bar")
+    with pytest.raises(ParameterError, match=r"rhoo = 5: not a parameter of Fluid; it accepts"):
+        Fluid(rhoo=5)

@@ -93,11 +93,15 @@ def test_a_tank_given_one_atmosphere_is_told_that_pressures_are_gauge():
     import warnings
     from pvgraph.components import Tank
     from pvgraph.errors import PlausibilityWarning
-    with pytest.warns(PlausibilityWarning, match=r"p0 = 101325 Pa .* gauge \(0 = atmospheric") \
+    with pytest.warns(PlausibilityWarning, match=r"p0 = 101325 Pa is about one atmosphere .* gauge \(0 = atmospheric") \
             as told:
         Tank(p0="1 atm")
     assert told[0].filename == __file__
+    for written in ("1 bar", "14.7 psi", "1.013 bar", "101325"):   # the same mistake
+        with pytest.warns(PlausibilityWarning, match=r"about one atmosphere .* gauge"):
+            Tank(p0=written)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         Tank()
         Tank(p0="2 bar")
+        Tank(p0="0.5 bar")

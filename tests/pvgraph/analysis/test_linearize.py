@@ -681,3 +681,59 @@ def test_linearize_takes_a_derived_outputs_own_dependence_on_a_parameter_input()
     dp = 870.0 / 2.0 * (Q / (0.6 * A)) ** 2
     assert abs(gain[0]) < 1e-9 * Q / A
     assert gain[1] == pytest.approx(-2.0 * Q * dp / A, rel=1e-6)
+
+
+def _driven_rod(u):
+    """A cylinder whose rod a set point moves directly (Constant -> PositionInput), its A
+    chamber on a 1 L node bled through an orifice to tank."""
+    from pvgraph.components import Cylinder, Orifice, PositionInput
+    c = Circuit("driven rod")
+    tank, node = c.add("tank", Tank()), c.add("node", VolumeNode(V=1e-3))
+    orf = c.add("orifice", Orifice(A=5e-6))
+    cyl = c.add("cyl", Cylinder(A_A=1e-3, A_rod=4e-4, stroke=0.3, V_dead_A=1e-5,
+                                V_dead_B=1e-5))
+    k, pos = c.add("k", Constant(k=u["x"])), c.add("pos", PositionInput())
+    c.connect(node.port, cyl.A, orf.a)
+    c.connect(orf.b, tank.port, cyl.B)
+    c.connect(k.y, pos.u)
+    c.connect(pos.flange, cyl.flange)
+    return c
+
+
+def test_an_input_acting_through_its_rate_is_refused():
+    """A rod position set directly by the input moves the chamber's oil through the rod's
+    velocity dx/dt (dp/dt = beta/V (A_A dx/dt - q)): a state-space model cannot hold du/dt.
+    Refused naming the position, from the build (linearize_circuit) and for the system's
+    parameter (linearize), where the model had B = 0 and no word."""
+    from pvgraph.analysis import linearize, steady_state
+    with pytest.raises(PvgraphError, match=r"input 'x' sets cyl\.flange\.x directly.*"
+                                           r"states' rates through its own rate du/dt"):
+        linearize_circuit(_driven_rod, {"x": 0.1}, ["node.port.p"])
+    s = _driven_rod({"x": 0.1}).compile()
+    assert s.held_rates["cyl.flange.x"][0] == ("k.k",)
+    op = steady_state(s)
+    with pytest.raises(PvgraphError, match=r"input 'k\.k' sets cyl\.flange\.x"):
+        linearize(s, op, {"k.k": np.zeros(s.n)}, ["node.port.p"])
+    # a parameter that fixes nothing whose rate is read is taken as before
+    assert linearize(s, op, {"orifice.A": np.zeros(s.n)}, ["node.port.p"]).B.shape == (1, 1)
+
+
+def test_a_supply_pressure_whose_rate_reaches_no_state_is_linearised():
+    """A pressure source p0 on a volume feeds two orifices in series through a second node:
+    p0's rate only changes the flow into the volume at the source, so the model from p0 to
+    the middle node is exact: DC gain 1/2 (equal orifices), pole -beta/V dq/dp of the node."""
+    from pvgraph.components import Orifice, PressureSource
+
+    def build(u):
+        c = Circuit("supply")
+        src, v = c.add("src", PressureSource(p0=u["p"])), c.add("v", VolumeNode(V=1e-3))
+        o1, n = c.add("o1", Orifice(A=5e-6)), c.add("n", VolumeNode(V=1e-3))
+        o2, t = c.add("o2", Orifice(A=5e-6)), c.add("t", Tank())
+        c.connect(src.port, v.port, o1.a)
+        c.connect(o1.b, n.port, o2.a)
+        c.connect(o2.b, t.port)
+        return c
+    lm = linearize_circuit(build, {"p": 1e7}, ["n.port.p"])
+    assert lm.dc_gain()[0, 0] == pytest.approx(0.5, rel=1e-6)
+    s = build({"p": 1e7}).compile()
+    assert "v.port.p" in s.held_rates

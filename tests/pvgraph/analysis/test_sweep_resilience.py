@@ -122,6 +122,26 @@ def test_resume_refuses_the_record_of_another_sweep(tmp_path):
         sweep(square, grid({"x": [1.0, 3.0]}), backend="serial", out=tmp_path, resume=True)
 
 
+def test_an_output_folder_that_is_not_one_is_told_before_any_case_runs(tmp_path):
+    """out= a file, a number, '' and overwrite=True without out= are refused by name (they
+    raised the OS's FileExistsError or TypeError, or were taken silently); a record of another
+    sweep is told with its count in words and without the command line's flag."""
+    (tmp_path / "f").write_text("x")
+    cases = grid({"x": [1.0]})
+    for out, told in ((tmp_path / "f", r"out='.*f' is a file, not a folder"),
+                      (5, r"out takes a folder path \(str or pathlib.Path\), got int 5"),
+                      ("", r"out='' names no folder")):
+        with pytest.raises(SweepError, match=told):
+            sweep(square, cases, backend="serial", out=out)
+    with pytest.raises(SweepError, match=r"overwrite=True replaces the record in out=; give"):
+        sweep(square, cases, backend="serial", overwrite=True)
+    assert (tmp_path / "f").read_text() == "x"
+    sweep(square, grid({"x": [1.0, 2.0]}), backend="serial", out=tmp_path / "o")
+    with pytest.raises(SweepError, match=r"^resume: .* \(2 cases of \['x'\]\); these are 1 "
+                                         r"case of \['x'\]"):
+        sweep(square, cases, backend="serial", out=tmp_path / "o", resume=True)
+
+
 def test_a_last_line_cut_short_reruns_that_case(tmp_path):
     sweep(square, grid({"x": [1.0, 2.0, 3.0]}), backend="serial", out=tmp_path)
     log = tmp_path / "cases.jsonl"
