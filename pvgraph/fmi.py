@@ -13,7 +13,8 @@ or ``pvgraph export TARGET --out rig.fmu --var NAME ...`` (outputs only).
   source: a ``Constant``'s ``k``, a ``FlowSource``'s ``Q``); the importing tool sets them
   between communication steps. **Outputs** are variables or derived outputs by dotted name.
   **Parameters** are further ``component.field`` values the importing tool may set before
-  the run starts. All values are SI.
+  the run starts. All values are SI, each variable with its unit in the model description
+  (``unit="Pa"``, defined under ``UnitDefinitions`` by its exponents of the SI base units).
 - **Packaging.** The FMU is built with `pythonfmu <https://github.com/NTNU-IHB/PythonFMU>`_:
   its binary (Linux x86-64 and Windows x86-64) starts a Python interpreter that runs a small
   slave class; the circuit travels inside the FMU as a model file
@@ -152,6 +153,7 @@ class {cls}(Fmi2Slave):
         super().__init__(**kwargs)
         with open(os.path.join(self.resources, "{spec}")) as f:
             spec = json.load(f)
+        self._spec = spec
         self._model = CircuitSlave(os.path.join(self.resources, "{model}"), spec)
         for name in spec["inputs"]:
             self._real(name, Fmi2Causality.input, Fmi2Variability.continuous, True)
@@ -169,8 +171,25 @@ class {cls}(Fmi2Slave):
 
     def to_xml(self, model_options=dict()):
         # FMI 2.0 lists the outputs computed at initialisation under InitialUnknowns too
-        from xml.etree.ElementTree import SubElement
+        from xml.etree.ElementTree import Element, SubElement
         root = super().to_xml(model_options)
+        # each variable's unit (SI), defined once under UnitDefinitions by its exponents of
+        # the SI base units, so that an importing tool converts and checks them
+        units = self._spec.get("units", {{}})
+        for var in root.iter("ScalarVariable"):
+            unit = units.get(var.get("name"))
+            real = var.find("Real")
+            if unit and real is not None:
+                real.set("unit", unit)
+        defs = self._spec.get("unit_definitions", {{}})
+        if defs:
+            table = Element("UnitDefinitions")
+            for unit, base in sorted(defs.items()):
+                SubElement(SubElement(table, "Unit", name=unit), "BaseUnit",
+                           attrib={{k: str(v) for k, v in base.items()}})
+            # after ModelExchange and CoSimulation, before the rest (the schema's order)
+            at = sum(1 for child in root if child.tag in ("ModelExchange", "CoSimulation"))
+            root.insert(at, table)
         structure = root.find("ModelStructure")
         outputs = structure.find("Outputs")
         if outputs is not None:
@@ -236,8 +255,10 @@ def export_fmu(circuit, path, *, inputs: Sequence[str] = (), outputs: Sequence[s
     cls = "".join(w.capitalize() for w in re.split(r"\W+", circuit.name) if w) or "Circuit"
     if not cls[0].isalpha():
         cls = "Circuit" + cls
+    units = _units(circuit, system, list(inputs) + list(parameters), outputs)
     spec = {"inputs": list(inputs), "outputs": list(outputs), "parameters": list(parameters),
-            "rtol": float(rtol)}
+            "rtol": float(rtol), "units": units,
+            "unit_definitions": {u: _base_units(u) for u in sorted(set(units.values()))}}
     if not (math.isfinite(rtol) and rtol > 0):
         raise FmiError(f"rtol must be a positive number, got {rtol!r}")
     folder = tempfile.mkdtemp(prefix="pvgraph-fmu-")
@@ -258,3 +279,48 @@ def export_fmu(circuit, path, *, inputs: Sequence[str] = (), outputs: Sequence[s
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     return os.fspath(built)
+
+
+def _units(circuit, system, params, outputs) -> dict:
+    """The SI unit of each FMU variable that has one (``Pa``, ``m^3/s``; dimensionless and
+    unknown ones left out): a parameter's from its field, an output's from the system."""
+    from .units import parse_unit
+    from .component import _UNIT
+    out = {}
+    known = circuit.parameters()
+    for name in params:
+        info = system.parameters.get(name)
+        unit = getattr(info, "unit", None)
+        if unit is None:
+            m = _UNIT.search(known[name][1] or "")
+            unit = m.group(1) if m else None
+        out[name] = unit
+    for name in outputs:
+        try:
+            out[name] = system.unit(name)
+        except PvgraphError:
+            out[name] = None
+    kept = {}
+    for name, unit in out.items():
+        if not unit or unit.strip() in ("-", "1"):
+            continue
+        try:
+            parse_unit(unit)
+        except PvgraphError:
+            continue
+        kept[name] = unit
+    return kept
+
+
+def _base_units(unit: str) -> dict:
+    """The exponents of the SI base units (and ``rad``) of ``unit``, as FMI 2.0's BaseUnit
+    attributes, with its factor where it is not 1."""
+    from .units import angle_power, parse_unit
+    factor, dims = parse_unit(unit)
+    out = {k: e for k, e in zip(("m", "kg", "s", "A", "K"), dims) if e}
+    rad = angle_power(unit)
+    if rad:
+        out["rad"] = rad
+    if factor != 1.0:
+        out["factor"] = repr(float(factor))
+    return out

@@ -42,6 +42,11 @@ def test_the_model_description_is_valid(fmu):
     assert causality == {"pump.Q": "input", "orifice.A": "parameter", "node.port.p": "output",
                          "orifice.q": "output"}
     assert md.coSimulation is not None
+    # SI units on every variable, each defined by its exponents of the SI base units
+    assert {v.name: v.unit for v in md.modelVariables} == {
+        "pump.Q": "m^3/s", "orifice.A": "m^2", "node.port.p": "Pa", "orifice.q": "m^3/s"}
+    base = {u.name: (u.baseUnit.kg, u.baseUnit.m, u.baseUnit.s) for u in md.unitDefinitions}
+    assert base == {"Pa": (1, -1, -2), "m^2": (0, 2, 0), "m^3/s": (0, 3, -1)}
 
 
 def test_fmu_with_an_input_step_matches_simulate(fmu):
