@@ -106,8 +106,11 @@ TUNED_PROVENANCE: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
      (("test-2", "Q_branch"), ("test-2", "Pm"), ("test-2", "Pf"))),
     ("rig.L1.laminar_large, rig.L3.laminar_large (table 4.8 = test 8's Q/dp, L3 within 0.3 %)",
      (("test-8", "Q_branch"), ("test-8", "Pm"), ("test-8", "Pf"))),
-    ("rig.L2.laminar_open (table 4.8, figure 4.32: the opening tests of both groups)",
-     tuple((f"test-{k}", "Q_branch") for k in (2, 5, 8, 11))),
+    # figure 4.32 fits Q_L2 against its drop Pf - Pm (eq. 4.132) over the L2-open points of
+    # both groups: the measured Pf and Pm of those tests went into K_L2 as much as Q_branch
+    ("rig.L2.laminar_open (table 4.8, figure 4.32: Q against Pf - Pm of the opening tests of "
+     "both groups)",
+     tuple((f"test-{k}", q) for k in (2, 5, 8, 11) for q in ("Q_branch", "Pf", "Pm"))),
 )
 
 

@@ -20,10 +20,12 @@ def test_tuned_roles_mark_what_the_report_fitted():
     # neutral flows and Q_branch with L2 closed are trivial
     assert roles[("sweep-1", "Q_total")] == roles[("sweep-2", "Q_total")] == "trivial"
     assert roles[("test-1", "Q_branch")] == "trivial"
-    # the return line came from Pb of tests 1, 4, 7, 10; the load constants from tests 2 and 8
+    # the return line came from Pb of tests 1, 4, 7, 10; K_L1, K_L3 from tests 2 and 8 and
+    # K_L2 from Q against Pf - Pm of the four opening tests (figure 4.32)
     assert [roles[(f"test-{k}", "Pb")] for k in (1, 4, 7, 10)] == ["fit"] * 4
     assert roles[("test-2", "Pf")] == roles[("test-8", "Pm")] == "fit"
-    assert roles[("test-5", "Pf")] == "held-out"
+    assert roles[("test-5", "Pf")] == roles[("test-11", "Pm")] == "fit"
+    assert roles[("test-5", "Pb")] == "held-out"
     assert set(roles.values()) == set(X.ROLES)
 
 
@@ -39,9 +41,10 @@ def test_roles_are_per_model_configuration():
         assert roles[(a.name, "Pm")] == roles[(b.name, "Pm")] == "repeat"
         # Pf of that configuration was not fitted anywhere: held-out in both
         assert roles[(a.name, "Pf")] == roles[(b.name, "Pf")] == "held-out"
-    # the opening tests 5 and 11 are configurations of their own
-    assert {roles[(f"test-{k}", q)] for k in (5, 11) for q in ("Pf", "Pm", "Pb")} == \
-        {"held-out"}
+    # the opening tests 5 and 11 are configurations of their own; their Pf and Pm went into
+    # K_L2 (figure 4.32 fits Q_L2 against Pf - Pm over the opening tests), their Pb did not
+    assert {roles[(f"test-{k}", q)] for k in (5, 11) for q in ("Pf", "Pm")} == {"fit"}
+    assert {roles[(f"test-{k}", "Pb")] for k in (5, 11)} == {"held-out"}
     # no "held-out" value shares its configuration and quantity with a fitted one
     fitted = {(X.configuration(get_scenario(n)), q) for (n, q), r in roles.items() if r == "fit"}
     assert not [(n, q) for (n, q), r in roles.items() if r == "held-out"
