@@ -734,14 +734,23 @@ def cmd_linearize(args) -> int:
           f"(SI); operating point ({op.method}, {op.iterations} iterations):")
     for n in outputs:
         print(f"  {n:40s} {_display(op[n], system.unit(n), args.si)}")
-    stable = bool(np.all(poles.real < 0))
-    print(f"{len(lm.state_names)} states, {'stable' if stable else 'NOT stable'}; poles:")
-    records = [{"real": float(s.real), "imag": float(s.imag), "natural_frequency": float(wn),
-                "damping_ratio": float(z) if wn > 0 else 1.0}
+    verdict, why = lm.stability()
+    stable = verdict == "stable"
+    print(f"{len(lm.state_names)} states, {verdict.replace('unstable', 'NOT stable')} ({why}); "
+          f"poles:")
+    # rounding of the eigenvalues (a real part of 1e-13 at a pole of 300 rad/s) shown as 0
+    tiny = 1e-9 * max(1.0, float(np.abs(poles).max())) if poles.size else 0.0
+
+    def clean(x):
+        return 0.0 if abs(x) <= tiny else float(x)
+    records = [{"real": clean(s.real), "imag": clean(s.imag), "natural_frequency": clean(wn),
+                "damping_ratio": (0.0 if abs(s.real) <= tiny else float(z)) if wn > tiny
+                else None}
                for s, wn, z in zip(poles, wns, zetas)]
     for r in records[:args.poles]:
+        zeta = "-" if r["damping_ratio"] is None else f"{r['damping_ratio']:.3f}"
         print(f"  {r['real']:12.5g} {r['imag']:+12.5g}  wn {r['natural_frequency']:.5g} rad/s  "
-              f"zeta {r['damping_ratio']:.3f}")
+              f"zeta {zeta}")
     try:
         gain = lm.dc_gain()
     except np.linalg.LinAlgError:
@@ -755,7 +764,7 @@ def cmd_linearize(args) -> int:
         _write_json_atomic(args.json, {
             "target": target.spec, "inputs": u0, "units": {n: system.unit(n) for n in outputs},
             "operating_point": {n: op[n] for n in outputs}, "n_states": len(lm.state_names),
-            "stable": stable, "poles": records,
+            "stable": stable, "stability": verdict, "poles": records,
             "dc_gain": None if gain is None else {n: {u: float(gain[i, j])
                                                       for j, u in enumerate(args.input)}
                                                   for i, n in enumerate(outputs)}})
@@ -912,7 +921,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--solver", default="pvgraph", choices=["pvgraph", "ida"],
                    help="the built-in IDA-style solver (default) or SUNDIALS IDA through "
                         "scikit-sundae (pip install \"pvgraph[sundials]\")")
-    s.add_argument("--rtol", type=_tolerance, default=1e-5,
+    s.add_argument("--rtol", type=_tolerance, default=1e-6,
                    help="relative tolerance (default: %(default)s)")
     s.add_argument("--var", action="append", help="variable to report (repeatable; names: "
                                                   "pvgraph vars TARGET)")
@@ -957,7 +966,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_target(w, optional=True)
     w.add_argument("--var", action="append", help="output variable (repeatable)")
     w.add_argument("--t-end", type=float, default=None, help="simulated time per case [s]")
-    w.add_argument("--rtol", type=_tolerance, default=1e-5,
+    w.add_argument("--rtol", type=_tolerance, default=1e-6,
                    help="relative tolerance (default: %(default)s)")
     w.add_argument("--steady", action="store_true",
                    help="record each case's steady operating point instead of simulating "

@@ -577,8 +577,8 @@ def test_validate_records_carry_roles(tmp_path, capsys):
 
 def test_validate_roles_per_configuration_and_model_checks(tmp_path, capsys):
     """Test 6 ends in the configuration of the fitted test 4: its Pb repeats a fit, and with L2
-    closed Pm is Pb; only test 5 is held out. The margin and settling targets compare the model
-    with itself and are not counted as held-out."""
+    closed Pm is Pb; test 5's Pf and Pm are fit (K_L2), its Pb held out. The margin and
+    settling targets compare the model with itself and are not counted as held-out."""
     code = main(["validate", "--scenario", "test-4", "--scenario", "test-5", "--scenario",
                  "test-6", "--out", str(tmp_path), "--no-plots", "--workers", "2"])
     out = capsys.readouterr().out
@@ -592,10 +592,13 @@ def test_validate_roles_per_configuration_and_model_checks(tmp_path, capsys):
     assert records[("test-4", "Pm")]["role"] == "repeat"
     assert records[("test-4", "Pm")]["simulated"] == pytest.approx(
         records[("test-4", "Pb")]["simulated"], abs=1e-3)
-    assert {records[("test-5", q)]["role"] for q in ("Pf", "Pm", "Pb")} == {"held-out"}
+    # test 5's Pf and Pm went into K_L2 (figure 4.32: Q against Pf - Pm), its Pb did not; a
+    # test with a fitted value is not counted as held out
+    assert {q: records[("test-5", q)]["role"] for q in ("Pf", "Pm", "Pb")} == {
+        "Pf": "fit", "Pm": "fit", "Pb": "held-out"}
     lines = {ln.split(":")[0].strip(): ln for ln in out.splitlines() if ln.startswith("  ")}
     steps = lines["miss  Pf, Pm, Pb within 2 bar (step tests)"]
-    assert steps.endswith("(fit 1/1, repeat of a fit 1/1, held-out 0/1)")  # test 5: Pf -2.45
+    assert steps.endswith("(fit 1/2, repeat of a fit 1/1)")  # test 5: Pf -2.45
     margin = next(ln for ln in out.splitlines() if "PVP margin within 1 bar" in ln)
     assert "model check 3/3, nothing measured" in margin and "held-out" not in margin
     settled = next(ln for ln in out.splitlines() if "settled within 0.5 s" in ln)
@@ -607,7 +610,7 @@ def test_validate_roles_per_configuration_and_model_checks(tmp_path, capsys):
                  "(unsaturated)"]["by_role"] == {"model check": {"passed": 3, "total": 3}}
     step_rows = {r["scenario"]: r for r in goals["Pf, Pm, Pb within 2 bar (step tests)"]["rows"]}
     assert {n: r["role"] for n, r in step_rows.items()} == {
-        "test-4": "fit", "test-5": "held-out", "test-6": "repeat"}
+        "test-4": "fit", "test-5": "fit", "test-6": "repeat"}
     assert step_rows["test-5"]["number"] == pytest.approx(2.45, abs=0.05)
     settle = goals["settled within 0.5 s of the solenoid step (step tests)"]
     assert settle["unit"] == "bar"
@@ -874,3 +877,19 @@ def test_the_ida_solver_without_scikit_sundae_is_told_before_compiling(rig_file,
     assert "--solver ida: solver='ida' needs SUNDIALS through scikit-sundae" in err
     assert 'pip install "pvgraph[sundials]"' in err and "Traceback" not in err
     assert not built
+
+
+def test_the_command_line_runs_at_the_tolerance_simulate_and_sweep_default_to():
+    """`pvgraph simulate` and `pvgraph sweep` without --rtol run at the rtol of simulate() and
+    sweep_system() (a circuit whose answer moves with the tolerance gave the command line
+    and Python different numbers at 1e-5 and 1e-6)."""
+    import inspect
+
+    from pvgraph.analysis.sweep import sweep_system
+    from pvgraph.cli import build_parser
+    from pvgraph.simulate import simulate
+    default = inspect.signature(simulate).parameters["rtol"].default
+    assert inspect.signature(sweep_system).parameters["rtol"].default == default
+    parser = build_parser()
+    assert parser.parse_args(["simulate", "demo"]).rtol == default
+    assert parser.parse_args(["sweep", "demo", "--param", "a=1"]).rtol == default

@@ -107,6 +107,44 @@ class LinearModel:
         ev = np.linalg.eigvals(self.A) if self.A.size else np.zeros(0)
         return ev[np.argsort(-ev.real, kind="stable")]
 
+    def stability(self) -> tuple[str, str]:
+        """``(verdict, why)`` of the model's internal stability: ``"stable"`` (every pole in
+        the open left half-plane), ``"marginally stable"`` (the others on the imaginary axis,
+        each with as many independent modes as its multiplicity: a conserved volume, an
+        undamped spring-mass) or ``"unstable"`` (a pole in the right half-plane, or a pole
+        on the axis repeated as a chain: a free mass pushed by a force). A real part within
+        ``1e-9`` of the largest pole's magnitude (rounding of the eigenvalues) counts as on
+        the axis."""
+        p = self.poles()
+        if p.size == 0:
+            return "stable", "no states"
+        tol = 1e-9 * max(1.0, float(np.abs(p).max()))
+        right = p[p.real > tol]
+        if right.size:
+            return "unstable", (f"{right.size} pole{'s' if right.size > 1 else ''} in the right "
+                                f"half-plane (largest real part {right.real.max():.4g} 1/s)")
+        axis = p[np.abs(p.real) <= tol]
+        if axis.size == 0:
+            return "stable", "every pole in the left half-plane"
+        n = self.A.shape[0]
+        seen: list = []
+        for q in axis:
+            if any(abs(q - r) <= 1e3 * tol for r in seen):
+                continue
+            seen.append(q)
+            mult = int(np.sum(np.abs(axis - q) <= 1e3 * tol))
+            sv = np.linalg.svd(self.A - q.imag * 1j * np.eye(n), compute_uv=False)
+            modes = int(np.sum(sv <= 1e3 * tol * max(1.0, float(sv.max()))))
+            if modes < mult:
+                return "unstable", (f"the pole {_pole_text(q)} on the imaginary axis is repeated "
+                                    f"as a chain ({mult} poles, {modes} independent "
+                                    f"mode{'s' if modes != 1 else ''}): an output grows "
+                                    f"without bound (a free mass pushed by a force)")
+        return "marginally stable", (f"{axis.size} pole{'s' if axis.size > 1 else ''} on the "
+                                     f"imaginary axis ({', '.join(_pole_text(q) for q in seen)}"
+                                     f"), none repeated as a chain: conserved quantities or "
+                                     f"undamped modes")
+
     def dc_gain(self) -> np.ndarray:
         """Steady-state gain ``G(0) = D - C A^-1 B`` (outputs x inputs).
 
@@ -325,6 +363,11 @@ class LinearModel:
         sys = signal.StateSpace(self.A, self.B[:, j:j + 1], self.C[i:i + 1], self.D[i:i + 1, j:j + 1])
         _, yout, _ = signal.lsim(sys, np.full(len(t), amplitude), t)
         return np.asarray(yout).reshape(-1)
+
+
+def _pole_text(q) -> str:
+    """A pole on the imaginary axis as ``0`` or ``+-317.4j``."""
+    return "0" if abs(q.imag) == 0.0 or abs(q.imag) < 1e-12 else f"{q.imag:+.4g}j"
 
 
 def _control():

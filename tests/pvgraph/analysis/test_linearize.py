@@ -737,3 +737,26 @@ def test_a_supply_pressure_whose_rate_reaches_no_state_is_linearised():
     assert lm.dc_gain()[0, 0] == pytest.approx(0.5, rel=1e-6)
     s = build({"p": 1e7}).compile()
     assert "v.port.p" in s.held_rates
+
+
+@pytest.mark.parametrize("A, verdict, why", [
+    ([[-2.0, 0.0], [0.0, -1.0]], "stable", "every pole in the left half-plane"),
+    # a trapped volume under a mass, no damping: a conserved oil volume and an undamped pair
+    ([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1e5, 0.0]], "marginally stable",
+     r"3 poles on the imaginary axis \(\+316.2j, -316.2j, 0\), none repeated"),
+    # a free mass pushed by a force: x'' = F/m, two poles at 0 in one chain
+    ([[0.0, 1.0], [0.0, 0.0]], "unstable", r"pole 0 on the imaginary axis is repeated as a "
+                                           r"chain \(2 poles, 1 independent mode\)"),
+    ([[0.5, 0.0], [0.0, -1.0]], "unstable", r"1 pole in the right half-plane \(largest real "
+                                            r"part 0.5 1/s\)"),
+])
+def test_stability_tells_marginal_from_unstable(A, verdict, why):
+    """An undamped spring-mass on a conserved volume is marginally stable, not unstable; a
+    double integrator is unstable although its poles are on the axis too."""
+    import re
+    A = np.asarray(A, dtype=float)
+    n = A.shape[0]
+    lm = LinearModel(A, np.ones((n, 1)), np.eye(n)[:1], np.zeros((1, 1)),
+                     [f"x{k}" for k in range(n)], ["u"], ["y"])
+    got, text = lm.stability()
+    assert got == verdict and re.search(why, text), (got, text)
