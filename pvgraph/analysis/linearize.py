@@ -279,6 +279,20 @@ class LinearModel:
             raise TypeError(f"step_info: unknown option(s) {unknown}; control.step_info takes "
                             f"{', '.join(known)}")
         sys = self.siso(output, input)
+        if "final_output" not in options:
+            # the path's own final value: where a pole at 0 lies off the path (a conserved
+            # volume, a rod position the output does not see) control's C (-A)^-1 B is NaN
+            j = self._idx(input, self.input_names, "input")
+            i = self._idx(output, self.output_names, "output")
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                final = float(self.dc_gain()[i, j])
+            if not math.isfinite(final):
+                raise PvgraphError(
+                    f"step_info: the path {self.input_names[j]} -> {self.output_names[i]} "
+                    f"integrates (a pole at s = 0 on it): a step makes the output ramp, so it "
+                    f"has no final value to rise to or settle at; use step() for the response")
+            options["final_output"] = final
         if "timepts" not in options:
             options["timepts"] = _step_grid(sys.A, sys.B, sys.C)
         else:

@@ -760,3 +760,24 @@ def test_stability_tells_marginal_from_unstable(A, verdict, why):
                      [f"x{k}" for k in range(n)], ["u"], ["y"])
     got, text = lm.stability()
     assert got == verdict and re.search(why, text), (got, text)
+
+
+def test_step_info_of_a_path_beside_a_pole_at_zero_uses_the_paths_final_value():
+    """A spring-mass x/F (wn 374.17 rad/s, zeta 0.05345) beside a conserved volume (a pole at
+    0 the path does not see): overshoot 100 exp(-zeta pi / sqrt(1 - zeta^2)) = 84.52 %, peak
+    at pi / (wn sqrt(1 - zeta^2)) = 8.408 ms, final F/k, where control's C (-A)^-1 B of the
+    singular A gave NaN and inf. A path through the integrator has no final value: refused."""
+    k, m, c = 7e6, 50.0, 2000.0
+    A = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -k / m, -c / m]])
+    B = np.array([[1.0], [0.0], [1.0 / m]])
+    lm = LinearModel(A, B, np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]), np.zeros((2, 1)),
+                     ["V", "x", "v"], ["F"], ["x", "V"])
+    wn, zeta = math.sqrt(k / m), c / (2.0 * math.sqrt(k * m))
+    info = lm.step_info("x", "F")
+    assert info["Overshoot"] == pytest.approx(100 * math.exp(-zeta * math.pi /
+                                                             math.sqrt(1 - zeta ** 2)), rel=1e-3)
+    assert info["PeakTime"] == pytest.approx(math.pi / (wn * math.sqrt(1 - zeta ** 2)),
+                                             rel=2e-3)
+    assert info["SteadyStateValue"] == pytest.approx(1.0 / k, rel=1e-9)
+    with pytest.raises(PvgraphError, match=r"step_info: the path F -> V integrates"):
+        lm.step_info("V", "F")
