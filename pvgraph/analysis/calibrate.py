@@ -296,6 +296,37 @@ def _from_spec(name, spec) -> FitParameter:
     return FitParameter(name, *values)
 
 
+def _check_against(params, system) -> None:
+    """Refuse a parameter ``system`` does not have, or a unit of another dimension than its."""
+    from ..system import System
+    from ..units import kind, parse_unit
+    if not isinstance(system, System):
+        compile_ = getattr(system, "compile", None)
+        if compile_ is None:
+            raise CalibrationError(f"system= takes a compiled System or a Circuit, got "
+                                   f"{type(system).__name__}")
+        system = compile_()
+    known = system.parameters
+    for p in params:
+        info = known.get(p.name)
+        if info is None:
+            import difflib
+            close = difflib.get_close_matches(p.name, list(known), n=3, cutoff=0.6)
+            hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
+            raise CalibrationError(f"parameter {p.name!r} is not a runtime parameter of "
+                                   f"{system.name!r}{hint}")
+        if not p.unit or not info.unit:
+            continue
+        try:
+            got, want = parse_unit(p.unit)[1], parse_unit(info.unit)[1]
+        except PvgraphError:
+            continue
+        if got != want:
+            raise CalibrationError(
+                f"parameter {p.name!r}: its values are given in {p.unit!r} ({kind(got)}), but "
+                f"{p.name} is {kind(want)} [{info.unit}]")
+
+
 def _numbers(values, what, *, ravel=True) -> np.ndarray:
     """``values`` as a float array, or a CalibrationError naming ``what``."""
     if isinstance(values, (str, bytes)):
@@ -331,7 +362,8 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
               xtol: float = 1e-6, ftol: float = 1e-6, rcond: float = RCOND,
               cov_step: float = COV_STEP,
               progress: Callable[[int, float], None] | None = None,
-              jacobian: Callable[[dict], np.ndarray] | None = None) -> CalibrationResult:
+              jacobian: Callable[[dict], np.ndarray] | None = None,
+              system=None) -> CalibrationResult:
     """Fit ``parameters`` so that ``predict(theta)`` matches ``measured`` in weighted least squares.
 
     Parameters
@@ -367,6 +399,11 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
         ``jacobian({name: value}) -> (len(measured), len(parameters))`` array of
         d predict / d theta (physical units). Default: ``predict.jacobian`` if the model has
         one, else finite differences.
+    system : System or Circuit, optional
+        What ``predict`` runs, for checking the parameters before the fit: each name must be
+        one of its parameters (close matches are named) and a value given as a quantity must
+        have that parameter's dimension (``"2 mm"`` for an area is refused). Without it the
+        names and units are the caller's: ``predict`` is a black box.
 
     Returns
     -------
@@ -375,6 +412,8 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
     from scipy import optimize, stats
 
     params = _as_parameters(parameters)
+    if system is not None:
+        _check_against(params, system)
     y = _numbers(measured, "measured")
     m, n = y.size, len(params)
     if isinstance(labels, str):
@@ -420,7 +459,14 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
             raw = predict(theta)
         except PvgraphError as exc:
             if strict:
-                raise CalibrationError(f"the model fails at the initial parameters: {exc}") from exc
+                given = [p for p in params if p.unit]
+                hint = "" if system is not None or not given else (
+                    f" (the parameters given as quantities were converted to SI by their own "
+                    f"unit: {', '.join(f'{p.name} = {p.initial:g} from {p.unit!r}' for p in given)}"
+                    f"; calibrate(..., system=...) checks their dimensions against the "
+                    f"circuit's parameters)")
+                raise CalibrationError(f"the model fails at the initial parameters: "
+                                       f"{exc}{hint}") from exc
             return None
         if raw is None:
             raise CalibrationError(f"predict returned None; it must return {m} predictions "

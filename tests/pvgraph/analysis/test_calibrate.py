@@ -197,6 +197,35 @@ def test_quantities_in_a_parameter_mapping_are_si_inside_and_shown_in_their_unit
         calibrate(predict, x, {"A": (1.0, 2.0)})
 
 
+def test_system_checks_the_names_and_dimensions_of_the_parameters():
+    """With system=, "2 mm" for an orifice's area is refused by dimension before the fit (it
+    started at 2000 mm^2 and ended on its bound); a misspelt name is told with close matches;
+    without it a failure at the start says how the quantity was read."""
+    c = Circuit("orifice on a pressure source")
+    src, o, t = c.add("src", PressureSource(p0=bar(50))), c.add("o", Orifice(A=mm2(2))), \
+        c.add("t", Tank())
+    c.connect(src.port, o.a)
+    c.connect(o.b, t.port)
+    s = c.compile()
+    dps = [bar(10), bar(30), bar(50)]
+
+    def predict(theta):
+        return [steady_state(s, params={**theta, "src.p0": dp})["o.q"] for dp in dps]
+    measured = predict({"o.A": mm2(2.2)})
+    with pytest.raises(CalibrationError, match=r"'o.A': its values are given in 'mm' \(a "
+                                               r"length\), but o.A is an area \[m\^2\]"):
+        calibrate(predict, measured, {"o.A": ("2 mm", "0.5 mm", "8 mm")}, system=s)
+    with pytest.raises(CalibrationError, match=r"'o.AA' is not a runtime parameter .* did you "
+                                               r"mean 'o.A'"):
+        calibrate(predict, measured, {"o.AA": 2e-6}, system=c)
+    with pytest.raises(CalibrationError, match=r"converted to SI by their own unit: o.A = "
+                                               r"200000 from 'bar'; calibrate\(\.\.\., "
+                                               r"system=\.\.\.\) checks"):
+        calibrate(predict, measured, {"o.A": ("2 bar", "1 bar", "3 bar")})
+    fit = calibrate(predict, measured, {"o.A": ("2 mm^2", "0.5 mm^2", "8 mm^2")}, system=s)
+    assert fit["o.A"] == pytest.approx(mm2(2.2), rel=1e-5)     # xtol 1e-6 of the search
+
+
 @pytest.mark.parametrize("kwargs, match", [
     ({"sigma": [1.0, 2.0]}, "sigma has 2 values for 8 measurements"),
     ({"cov_step": 0.0}, r"cov_step must lie in \(0, 1\)"),
