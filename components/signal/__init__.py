@@ -7,7 +7,7 @@ number of inputs (``SignalIn``).
 from .blocks import PID, FirstOrderLag, Gain, Integrator, Product, Saturation, Sum, Sum3
 from .lvdt import LVDT
 from .pve_controller import PVEController
-from .sources import Constant, Ramp, Sine, Step, TimeTable
+from .sources import Constant, Pulse, Ramp, Sine, Step, TimeTable
 
-__all__ = ["Constant", "Step", "Ramp", "TimeTable", "Sine", "Gain", "Sum", "Sum3", "Saturation",
+__all__ = ["Constant", "Step", "Ramp", "TimeTable", "Sine", "Pulse", "Gain", "Sum", "Sum3", "Saturation",
            "FirstOrderLag", "Product", "Integrator", "PID", "LVDT", "PVEController"]

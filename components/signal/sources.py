@@ -7,6 +7,7 @@
     Ramp:       y = offset + height * clip((t - t_start) / duration, 0, 1)
     TimeTable:  y = table(t)                       linear or pchip, held beyond the ends
     Sine:       y = offset + amplitude * sin(2*pi*f*t + phase)
+    Pulse:      y = offset + height * on           on: 1 for duty * period from t_start + k period
 
 ``Step`` and ``Ramp`` switch a discrete mode at declared events (``t - t_step`` crossing zero
 upwards), so the solver stops exactly at the switching time and restarts from consistent values
@@ -28,7 +29,7 @@ from pvgraph import expr as E
 from pvgraph.component import Component, Params, SignalOut
 
 __all__ = ["Constant", "ConstantParams", "Step", "StepParams", "Ramp", "RampParams",
-           "TimeTable", "TimeTableParams", "Sine", "SineParams"]
+           "TimeTable", "TimeTableParams", "Sine", "SineParams", "Pulse", "PulseParams"]
 
 
 def _switch(name):
@@ -147,3 +148,44 @@ class Sine(Component):
 
     def equations(self, v, p):
         return [v.y - (p.offset + p.amplitude * E.sin(2.0 * math.pi * p.f * v.t + p.phase))]
+
+
+class PulseParams(Params):
+    height: float = Field(1.0, ge=-1e12, le=1e12, description="Size of the pulses [unit of y]")
+    offset: float = Field(0.0, ge=-1e12, le=1e12,
+                          description="Value between the pulses [unit of y]")
+    period: float = Field(..., gt=0.0, le=1e9, description="Period of the pulse train [s]")
+    duty: float = Field(0.5, gt=0.0, lt=1.0,
+                        description="Fraction of each period at offset + height [-]")
+    t_start: float = Field(0.0, ge=0.0, le=1e9, description="Time of the first rise [s]")
+
+
+class Pulse(Component):
+    """Pulse train (a PWM command, Simulink's Pulse Generator): ``offset + height`` for
+    ``duty * period`` from each rise at ``t_start + k period``, ``offset`` in between.
+
+    Each edge is an event on ``t - t_next``, with the time of the next edge held in the modes
+    (periods done, and whether the pulse is on), so the condition only grows between two
+    edges and the solver stops at every edge, however long its steps (a condition on
+    ``cos(2 pi t / period)`` rises and falls within one step and is missed where the step
+    spans a period). A run starts the train afresh at ``t_start``.
+    """
+
+    Params = PulseParams
+    ports = {"y": SignalOut("the pulse train")}
+    modes = {"on": 0.0, "periods": 0.0}
+
+    def equations(self, v, p):
+        on = v.mode("on")
+        t_next = p.t_start + (v.mode("periods") + p.duty * on) * p.period
+        v.event("edge", v.t - t_next, direction=1, action=_next_edge, at_start=True)
+        return [v.y - (p.offset + p.height * E.where(on > 0.5, 1.0, 0.0))]
+
+
+def _next_edge(view):
+    """At a rise: on; at a fall: off, and one period more done."""
+    if view["on"] > 0.5:
+        view["on"] = 0.0
+        view["periods"] = view["periods"] + 1.0
+    else:
+        view["on"] = 1.0

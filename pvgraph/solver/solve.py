@@ -679,9 +679,11 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             f"time{'s' if rescue['count'] > 1 else ''} (first at t = {t_first:.6g} s"
             f"{', on ' + ', '.join(map(repr, names)) if names else ''}); the run went on past "
             f"each with the algebraic variables solved a step further and every variable in "
-            f"the error test from there. Where an algebraic pressure sits between valves with "
-            f"no volume, a VolumeNode on that node makes the circuit well-posed; values near "
-            f"those times are approximate."), stacklevel=outside_stacklevel())
+            f"the error test from there. The run from there on may follow another solution "
+            f"of the equations that failed (a node's pressure on a far branch), not only be "
+            f"approximate near those times: check it. Where an algebraic pressure sits between "
+            f"valves with no volume, a VolumeNode on that node makes the circuit "
+            f"well-posed."), stacklevel=outside_stacklevel())
     return DAEResult(
         t=np.asarray(ts, dtype=float),
         y=np.array(ys, dtype=float) if ys else np.empty((0, n)),

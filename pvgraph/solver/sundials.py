@@ -111,6 +111,24 @@ class _Residual:
             raise _NonFinite()
 
 
+#: successful IDA steps in a row that leave t unchanged before the run is stopped (SUNDIALS'
+#: own limit of steps per call, mxstep, is 500)
+MAX_STALLED_STEPS = 500
+
+
+def _stall(stalled, tn, t_end):
+    """One more step that did not advance t; a SolverError after MAX_STALLED_STEPS."""
+    stalled += 1
+    if stalled >= MAX_STALLED_STEPS:
+        raise SolverError(
+            f"{SOLVER_NAME}'s step fell below the rounding of t at t = {tn:.12g}: "
+            f"{stalled} steps in a row left t unchanged, before t_end = {t_end:.9g}. The "
+            f"model changes faster there than IDA can follow (an impact on a stop, a "
+            f"discontinuity without an event); the built-in solver (solver='pvgraph') "
+            f"handles such kinks with its own step rules, or give max_step.", t=tn)
+    return stalled
+
+
 def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None,
                        jac=None, jac_sparsity=None, events=None, t_eval=None, max_step=None,
                        first_step=None, calc_initial="algebraic", max_order=5,
@@ -263,6 +281,7 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
             last_y, last_yp = y.copy(), yp.copy()
             hit = None
             restarted = False
+            stalled = 0     # successful steps in a row that left t where it was
             while True:
                 if nsteps >= max_steps:
                     raise SolverError(
@@ -301,11 +320,18 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                         hit = (tn, fired, stopping_event(fired, event_list), out.y.copy(),
                                out.yp.copy())
                     if hit is None:
+                        if tn <= t_last:
+                            stalled = _stall(stalled, tn, t_end)
                         continue
                     nsteps += 1     # the step that found the event is left behind
                 elif tn > t_last:
                     nsteps += 1
+                    stalled = 0
                 else:
+                    # no progress: the call after an output time IDA interpolated to, or a
+                    # step below the rounding of t (SUNDIALS' "t + h = t" warning), which
+                    # IDA returns as a success at the same t again and again
+                    stalled = _stall(stalled, tn, t_end)
                     continue
                 # outputs up to tn (before an action at tn: strictly before it)
                 upto, inclusive = tn, hit is None or hit[2].terminal

@@ -595,12 +595,14 @@ def _extend_on_a_free_load():
     return c
 
 
-@pytest.mark.parametrize("rtol", [2e-5, 8e-6, 5e-6])
+@pytest.mark.parametrize("rtol", [2e-5, 8e-6, 5e-6, 1e-6])
 def test_a_chamber_that_cavitates_for_a_moment_gives_one_result_at_any_tolerance(rtol):
     """At every tolerance the rod extends and rests on its 200 mm stop, with the line at the
-    relief's pressure and the rod where the solution converges at rtol 1e-9 (110.49 mm at
-    1 s). A cavitating chamber's compliance that grew to 1e3 /Pa once made chamber A swallow
-    the pump's 15 L/min at 8e-6 and 5e-6: the rod never moved."""
+    relief's pressure and the rod where the solution converges at rtol 1e-9 (116.78 mm at
+    1 s; 110.49 mm while the cavity was a compliance of the whole chamber, which lost 12 of
+    the 400 cm^3 fed as the chamber grew). A cavitating chamber's compliance that grew to
+    1e3 /Pa once made chamber A swallow the pump's 15 L/min at 8e-6 and 5e-6: the rod never
+    moved."""
     import warnings
 
     from pvgraph.errors import PlausibilityWarning
@@ -608,9 +610,71 @@ def test_a_chamber_that_cavitates_for_a_moment_gives_one_result_at_any_tolerance
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PlausibilityWarning)    # the cavitation, by name
         sol = simulate(system, 3.0, rtol=rtol, t_eval=[1.0, 3.0])
-    assert sol["cyl.flange.x"][0] == pytest.approx(0.11049, abs=3e-3)   # 0.4-2.5 mm off
+    assert sol["cyl.flange.x"][0] == pytest.approx(0.11678, abs=4.5e-3)   # 0.3-3.9 mm off
     assert sol["cyl.flange.x"][1] == pytest.approx(0.2 + 1e-6 * 30, abs=5e-5)   # on the stop
     assert sol["line.port.p"][1] == pytest.approx(152.2373e5, rel=1e-4)
+
+
+def _pump_into_a_free_rod(m="100 kg", b=2000.0):
+    """20 L/min straight into a 50/28 mm cylinder (20 cm^3 dead volumes) on a mass, B to tank,
+    from rest: the start kicks the mass ahead of its supply and chamber A cavitates."""
+    from pvgraph.components import FlowSource
+    c = Circuit("cyl")
+    c.add("pump", FlowSource(Q="20 L/min"))
+    c.add("cyl", Cylinder(A_A=math.pi * 0.05 ** 2 / 4, A_rod=math.pi * 0.028 ** 2 / 4,
+                          stroke="300 mm", V_dead_A="20 cm^3", V_dead_B="20 cm^3"))
+    c.add("m", Mass(m=m, b=b))
+    c.add("t", Tank())
+    c.connect("cyl.flange", "m.flange")
+    c.connect("pump.port", "cyl.A")
+    c.connect("cyl.B", "t.port")
+    return c
+
+
+@pytest.mark.parametrize("rtol, within", [(2e-5, 7e-3), (1e-5, 7e-3), (1e-6, 5e-4),
+                                           (1e-7, 1e-4)])
+def test_a_cavity_that_collapses_again_and_again_keeps_its_oil(rtol, within):
+    """On 100 kg with little damping (zeta 0.009) chamber A's cavity collapses in impacts
+    again and again; the rod cannot run ahead of the oil fed and ends at (Q t - oil
+    compressed) / A_A = 169.76 mm at 1 s where the run converges (rtol 1e-8: 0.0009 cm^3 of
+    333 unaccounted), closer the tighter the tolerance (the cavity hangs on the pressure's
+    error). With the cavity a compliance of the whole chamber, at 2e-5 the rod reached its
+    300 mm stop (370 cm^3 of oil made: a corrector root that kept the cavity open over a
+    collapse), and the run converged to 168.33 mm (2.8 cm^3 lost)."""
+    import warnings
+
+    from pvgraph.errors import PlausibilityWarning
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PlausibilityWarning)    # the cavitation, by name
+        sol = simulate(_pump_into_a_free_rod(), 1.0, rtol=rtol, t_eval=[0.5, 1.0])
+    x = sol["m.flange.x"][1]
+    assert x < 20 / 60e3 * 1.0 / (math.pi * 0.05 ** 2 / 4) + 1e-5
+    assert x == pytest.approx(0.169764, abs=within)
+
+
+def test_a_chamber_growing_while_it_cavitates_takes_no_oil_it_has_no_room_for():
+    """500 kg on little damping: the start kicks the rod 100 mm ahead of its oil, the cavity
+    refills by 0.8 s and the chamber fills again. The cavity was a compliance of the whole
+    chamber volume, so as the chamber grew at the vapour pressure it took oil it had no room
+    for: 79 of 333 cm^3 lost, the rod stopped at 136 mm and ran back at 0.07 m/s against the
+    running pump. With the cavity a fraction of the volume (the oil fills the rest) the oil is
+    where the rod says, A_A x >= Q t - compression at every moment (to 0.5 cm^3), and the
+    rod keeps going."""
+    import warnings
+
+    from pvgraph.errors import PlausibilityWarning
+    t = np.linspace(0.0, 1.0, 201)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PlausibilityWarning)
+        sol = simulate(_pump_into_a_free_rod(m="500 kg", b=100.0), 1.0, rtol=1e-7, t_eval=t)
+    A_A = math.pi * 0.05 ** 2 / 4
+    beta = 7e8
+    V_A = 20e-6 + A_A * sol["m.flange.x"]
+    oil = 20 / 60e3 * t - V_A / beta * sol["cyl.A.p"]      # fed, less what compression holds
+    void = A_A * sol["m.flange.x"] + 20e-6 - 20e-6 - oil
+    assert np.min(void) > -0.5e-6                           # never less room than oil
+    assert np.all(np.diff(sol["m.flange.x"][100:]) > -1e-6)  # the rod does not run back
+    assert sol["m.flange.x"][-1] > 0.16
 
 
 def test_a_pump_straight_into_a_counterbalance_check_lifts_its_load():
@@ -690,19 +754,23 @@ def test_a_valve_piped_straight_into_a_counterbalance_valve_runs():
     assert -v_ideal < speed < -0.9 * v_ideal
 
 
-def test_after_a_rescue_the_run_stays_on_the_circuits_solution():
-    """The valve piped into the counterbalance valve, started from rest (no start value): one
-    rescue at 2 ms; from there every variable is in the error test, so the run does not settle
-    on a far branch of the node's equation (with the algebraic variables left out, the load
-    lowered 1.8 mm instead of 80 mm and the node went to -1.2e7 bar): the rod at 1.5 s is where
-    the circuit with 1 cm^3 on that node puts it, to 1 mm, and a PlausibilityWarning says when."""
+def test_a_run_past_a_rescue_says_it_may_have_left_the_circuits_solution():
+    """The valve piped into the counterbalance valve, started from rest (no start value):
+    rescues at 2 ms. Past them the run can follow another solution of the node's equation (at
+    the default rtol the load stays near 0.398 m where the circuit lowers it to 0.318 m), so
+    the PlausibilityWarning says to check the run, not that values near those times are
+    approximate; with the 1 cm^3 on that node it advises, the circuit lowers its load as
+    SUNDIALS IDA does, to 1 mm."""
     from pvgraph.errors import PlausibilityWarning
     c, _ = _valve_into_counterbalance()
-    with pytest.warns(PlausibilityWarning, match=r"corrector failed down to a vanishing step 1 "
-                                                 r"time \(first at t = 0.00"):
-        sol = simulate(c, 1.5)
-    assert sol.stats["nrescue"] == 1
-    ref = simulate(_valve_into_counterbalance("1 cm^3")[0], 1.5)
-    assert sol.final("cyl.flange.x") == pytest.approx(ref.final("cyl.flange.x"), abs=1e-3)
-    assert sol.final("cyl.flange.x") < 0.33                   # lowered from 0.4 m
-    assert np.min(sol["valve.A.p"]) > -1e5                    # no node far below the atmosphere
+    with pytest.warns(PlausibilityWarning, match=r"(?s)corrector failed down to a vanishing "
+                                                 r"step \d+ times? \(first at t = 0.00.*may "
+                                                 r"follow another solution .* check it.*a "
+                                                 r"VolumeNode on that node"):
+        sol = simulate(c, 1.5, t_eval=[1.5])
+    assert sol.stats["nrescue"] >= 1
+    pytest.importorskip("sksundae")
+    well_posed = _valve_into_counterbalance("1 cm^3")[0]
+    ours, ida = simulate(well_posed, 1.5), simulate(well_posed, 1.5, solver="ida")
+    assert ours.final("cyl.flange.x") == pytest.approx(ida.final("cyl.flange.x"), abs=1e-3)
+    assert ours.final("cyl.flange.x") < 0.33                  # lowered from 0.4 m

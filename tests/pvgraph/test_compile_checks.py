@@ -109,8 +109,9 @@ def _incidence_of_alias_elimination(circuit):
     captured = {}
     original = K._eliminate_aliases
 
-    def spy(equations, infos, subs, values, found=None, incidence=None, prov=None, why=None):
-        out = original(equations, infos, subs, values, found, incidence, prov, why)
+    def spy(equations, infos, subs, values, found=None, incidence=None, prov=None, why=None,
+            held=None):
+        out = original(equations, infos, subs, values, found, incidence, prov, why, held)
         captured["equations"], captured["incidence"] = out, incidence
         return out
 

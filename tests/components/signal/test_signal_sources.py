@@ -129,3 +129,37 @@ def test_a_signal_value_given_with_a_unit_is_taken_in_si():
     assert Gain(k="2 bar/mm").params.k == pytest.approx(2e8)
     with pytest.raises(ParameterError, match=r"k = '3 furlong'.*unknown unit 'furlong'"):
         Constant(k="3 furlong")
+
+
+@pytest.mark.parametrize("rtol", [1e-2, 1e-6, 1e-10])
+def test_pulse_train_stops_at_every_edge_at_any_tolerance(rtol):
+    """A 1 kHz pulse train at 30 % duty into an integrator: 2000 edges in 1 s, the integral
+    0.3 (the duty) to 1e-9 at every tolerance. A condition on cos(2 pi f t) was missed where
+    a step spanned a period (y(1 s) = 1.0 at rtol 1e-2, 0.03 at 1e-6)."""
+    from pvgraph.components.signal import Integrator, Pulse
+    from pvgraph.simulate import simulate
+    c = Circuit("pwm")
+    c.add("pwm", Pulse(period="1 ms", duty=0.3))
+    c.add("i", Integrator())
+    c.connect("pwm.y", "i.u")
+    sol = simulate(c, 1.0, rtol=rtol, t_eval=[0.5, 1.0])
+    assert sol["i.y"][-1] == pytest.approx(0.3, abs=1e-9)
+    assert len(sol.events) == 2000
+    assert [e.t for e in sol.events[:3]] == pytest.approx([3e-4, 1e-3, 1.3e-3], abs=1e-15)
+
+
+def test_pulse_offset_height_and_first_rise():
+    """Off (-1) until the first rise at 50 ms, then +1 for a quarter of each 100 ms: over 1 s
+    the integral is -0.05 before it, 9 periods of (0.025 - 0.075) and a last half period
+    (0.025 on, 0.025 off)."""
+    from pvgraph.components.signal import Integrator, Pulse
+    from pvgraph.simulate import simulate
+    c = Circuit("pwm")
+    c.add("pwm", Pulse(period=0.1, duty=0.25, t_start=0.05, height=2.0, offset=-1.0))
+    c.add("i", Integrator())
+    c.connect("pwm.y", "i.u")
+    sol = simulate(c, 1.0, t_eval=[0.04, 0.06, 0.08, 1.0])
+    assert list(sol["pwm.y"][:3]) == [-1.0, 1.0, -1.0]
+    assert sol["i.y"][-1] == pytest.approx(-0.05 + 9 * (0.025 - 0.075) + 0.0, abs=1e-9)
+    with pytest.raises(ParameterError, match="duty"):
+        Pulse(period=0.1, duty=1.0)

@@ -91,3 +91,37 @@ def test_sundials_backend_checks_its_arguments_as_the_built_in_one(kwargs, match
     with pytest.raises(ValueError, match=match):
         solve_dae_sundials(args.pop("residual"), args.pop("t_span"), args.pop("y0"),
                            args.pop("yp0"), **args)
+
+
+def test_sundials_backend_stops_where_ida_no_longer_advances_t():
+    """A cylinder fed 0.1 L/s against its stop at rtol 1e-8: IDA's step falls below the
+    rounding of t at the impact and every further step returns success at that same t. The
+    backend ran on for ever there (such steps were not counted, so max_steps never came); it
+    now stops after 500 of them, saying where; the built-in solver runs through the impact."""
+    pytest.importorskip("sksundae")
+    import warnings
+
+    from pvgraph import Circuit
+    from pvgraph.components import Cylinder, FlowSource, Mass, Tank
+    from pvgraph.errors import SolverError
+    from pvgraph.simulate import simulate
+    c = Circuit("cyl")
+    c.add("src", FlowSource(Q=1e-4))
+    c.add("tank", Tank())
+    c.add("cyl", Cylinder(A_A=1e-3, A_rod=5e-4, stroke=0.1, V_dead_A=1e-5, V_dead_B=1e-5,
+                          beta=7e8))
+    c.add("mass", Mass(m=5.0, b=5e4))
+    c.connect("src.port", "cyl.A")
+    c.connect("cyl.B", "tank.port")
+    c.connect("cyl.flange", "mass.flange")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(SolverError, match=r"step fell below the rounding of t at t = "
+                                              r"1\.0007\d*: 500 steps in a row"):
+            simulate(c, 1.02, rtol=1e-8, solver="ida", max_wall_time=120)
+        sol = simulate(c, 1.02, rtol=1e-8, t_eval=[1.01, 1.02])
+    # on the stop from t = stroke A_A / Q = 1.0 s (plus the oil compressed), then
+    # dp/dt = beta Q / V_A of the closed chamber: 7e8 * 1e-4 / (1e-5 + 1e-4) Pa/s
+    slope = (sol["cyl.A.p"][1] - sol["cyl.A.p"][0]) / 0.01
+    assert slope == pytest.approx(7e8 * 1e-4 / 1.1e-4, rel=0.02)
+    assert sol["mass.flange.x"][-1] == pytest.approx(0.1, abs=1e-4)
