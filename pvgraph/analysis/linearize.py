@@ -112,29 +112,44 @@ class LinearModel:
         the open left half-plane), ``"marginally stable"`` (the others on the imaginary axis,
         each with as many independent modes as its multiplicity: a conserved volume, an
         undamped spring-mass) or ``"unstable"`` (a pole in the right half-plane, or a pole
-        on the axis repeated as a chain: a free mass pushed by a force). A real part within
-        ``1e-9`` of the largest pole's magnitude (rounding of the eigenvalues) counts as on
-        the axis."""
-        p = self.poles()
-        if p.size == 0:
-            return "stable", "no states"
-        tol = 1e-9 * max(1.0, float(np.abs(p).max()))
-        right = p[p.real > tol]
-        if right.size:
-            return "unstable", (f"{right.size} pole{'s' if right.size > 1 else ''} in the right "
-                                f"half-plane (largest real part {right.real.max():.4g} 1/s)")
-        axis = p[np.abs(p.real) <= tol]
-        if axis.size == 0:
-            return "stable", "every pole in the left half-plane"
+        on the axis repeated as a chain: a free mass pushed by a force).
+
+        A pole counts as on the axis where its real part is within the rounding of that
+        eigenvalue: ``100 eps |A| kappa`` with ``kappa`` its condition number (from its left
+        and right eigenvectors), at most ``10 sqrt(eps |A|)`` (a double pole at 0 splits by
+        that much): a well-conditioned pole at +0.05 1/s beside poles of 1e8 rad/s is
+        unstable.
+        """
+        import scipy.linalg
         n = self.A.shape[0]
+        if n == 0:
+            return "stable", "no states"
+        w, vl, vr = scipy.linalg.eig(self.A, left=True, right=True)
+        eps = np.finfo(float).eps
+        size = max(1.0, float(np.linalg.norm(self.A)))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            kappa = np.linalg.norm(vl, axis=0) * np.linalg.norm(vr, axis=0) / np.abs(
+                np.sum(vl.conj() * vr, axis=0))
+        tol = np.minimum(100.0 * eps * size * np.nan_to_num(kappa, nan=np.inf, posinf=np.inf),
+                         10.0 * math.sqrt(eps * size))
+        right = w.real > tol
+        if right.any():
+            worst = w[right][np.argmax(w[right].real)]
+            return "unstable", (f"{int(right.sum())} pole{'s' if right.sum() > 1 else ''} in the "
+                                f"right half-plane (largest real part {worst.real:.4g} 1/s)")
+        on_axis = np.abs(w.real) <= tol
+        if not on_axis.any():
+            return "stable", "every pole in the left half-plane"
+        axis = w[on_axis]
         seen: list = []
         for q in axis:
-            if any(abs(q - r) <= 1e3 * tol for r in seen):
+            near = max(10.0 * math.sqrt(eps * size), 1e-9 * abs(q))
+            if any(abs(q.imag - r.imag) <= near for r in seen):
                 continue
             seen.append(q)
-            mult = int(np.sum(np.abs(axis - q) <= 1e3 * tol))
+            mult = int(np.sum(np.abs(axis.imag - q.imag) <= near))
             sv = np.linalg.svd(self.A - q.imag * 1j * np.eye(n), compute_uv=False)
-            modes = int(np.sum(sv <= 1e3 * tol * max(1.0, float(sv.max()))))
+            modes = int(np.sum(sv <= math.sqrt(eps) * max(1.0, float(sv.max()))))
             if modes < mult:
                 return "unstable", (f"the pole {_pole_text(q)} on the imaginary axis is repeated "
                                     f"as a chain ({mult} poles, {modes} independent "
@@ -186,7 +201,15 @@ class LinearModel:
                                                    f"{float(w.max()):g}"))
         A, b, c, d = self.A, self.B[:, j], self.C[i], self.D[i, j]
         eye = np.eye(A.shape[0])
-        return np.array([c @ np.linalg.solve(1j * wk * eye - A, b) + d for wk in w])
+        out = np.empty(w.size, dtype=complex)
+        for k, wk in enumerate(w):
+            if wk == 0.0:   # a pole at 0 off the path leaves G(0) finite: dc_gain's value
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    out[k] = self.dc_gain()[i, j]
+                continue
+            out[k] = c @ np.linalg.solve(1j * wk * eye - A, b) + d
+        return out
 
     def bode(self, w, output=0, input=0):
         """``(magnitude [dB], phase [deg])`` of the path ``input -> output`` at ``w`` [rad/s];
@@ -379,9 +402,21 @@ class LinearModel:
         return np.asarray(yout).reshape(-1)
 
 
+def _same_value(a, b) -> bool:
+    """Two parameter values (numbers or tables) are equal."""
+    try:
+        return bool(np.array_equal(np.asarray(a, dtype=float), np.asarray(b, dtype=float)))
+    except (TypeError, ValueError):
+        return a == b
+
+
 def _pole_text(q) -> str:
-    """A pole on the imaginary axis as ``0`` or ``+-317.4j``."""
-    return "0" if abs(q.imag) == 0.0 or abs(q.imag) < 1e-12 else f"{q.imag:+.4g}j"
+    """A pole near the imaginary axis as ``0``, ``+317.4j`` or, where its real part is not
+    exactly zero, with it (``-2.1e-09+317.4j``)."""
+    re_, im = float(q.real), float(q.imag)
+    if re_ == 0.0 and im == 0.0:
+        return "0"
+    return (f"{re_:.2g}" if re_ != 0.0 else "") + (f"{im:+.4g}j" if im != 0.0 else "")
 
 
 def _control():
@@ -545,6 +580,18 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
                                f"{system.name!r} (scaled residual {r:.3g} there): it was found "
                                f"for another system (other parameter values?); use "
                                f"steady_state(system)")
+        # found with other runtime parameters (steady_state(system, params=...)): a volume, a
+        # bulk modulus or a mass moves no steady state, only the dynamics linearised here
+        theirs = op.system.parameters
+        differ = [nm for nm, info in system.parameters.items() if nm in theirs and
+                  not _same_value(theirs[nm].value, info.value)]
+        if differ:
+            told = "; ".join(f"{nm} = {theirs[nm].value!r} there, {system.parameters[nm].value!r}"
+                             f" here" for nm in differ[:3])
+            more = f" and {len(differ) - 3} more" if len(differ) > 3 else ""
+            raise PvgraphError(f"linearize: the operating point was found with other parameter "
+                               f"values than the system's ({told}{more}): linearise the system "
+                               f"it was found for, linearize(op.system, op, ...)")
     outputs = _name_list(outputs, "linearize: outputs")
     for what, arg in (("inputs", inputs), ("direct", direct)):
         if arg is not None and not isinstance(arg, Mapping):

@@ -116,12 +116,42 @@ class OperatingPoint:
             x = np.linalg.solve(J, rhs)
             x[cyc] = 0.0
             return x
+        if self.info.get("undetermined"):
+            return self._solve_holding(rhs)
         if s.n <= s.DENSE_MAX:
             J = s.jacobian_dense(self.t, self.y, self.yp, 0.0)
             return np.linalg.solve(J, rhs)
         from scipy.sparse.linalg import splu
         lu = splu(s.jacobian(self.t, self.y, self.yp, 0.0).tocsc())
         return lu.solve(np.asarray(rhs, dtype=float))
+
+    def _solve_holding(self, rhs) -> np.ndarray:
+        """``F_y X = rhs`` with the undetermined unknowns (``info["undetermined"]``: a rod
+        held by a closed oil column, a shaft at rest between closed ports) held where they
+        are: F_y is singular there, one equation per such unknown repeats the others, and the
+        rest determine everything else (least squares of the consistent system, checked)."""
+        s = self.system
+        held = [s.names.index(nm) for nm in self.info["undetermined"]]
+        keep = np.setdiff1d(np.arange(s.n), held)
+        if s.n > 40 * s.DENSE_MAX:
+            raise PvgraphError(f"{s.name}: sensitivities at a steady state with undetermined "
+                               f"unknowns ({', '.join(self.info['undetermined'][:3])}) are "
+                               f"solved dense, up to {40 * s.DENSE_MAX} unknowns; this system "
+                               f"has {s.n}")
+        J = s.jacobian_dense(self.t, self.y, self.yp, 0.0)
+        b = np.asarray(rhs, dtype=float)
+        sub, *_ = np.linalg.lstsq(J[:, keep], b, rcond=None)
+        miss = J[:, keep] @ sub - b
+        scale = np.abs(J[:, keep]) @ np.abs(sub) + np.abs(b)
+        if np.any(np.abs(miss) > 1e-8 * np.max(scale, axis=0) + 1e-300):
+            raise PvgraphError(
+                f"{s.name}: the steady state holds {', '.join(self.info['undetermined'][:3])} "
+                f"undetermined (nothing fixes {'it' if len(held) == 1 else 'them'}), and the "
+                f"change asked for moves the equation that would: there is no steady "
+                f"sensitivity (the point stops being steady); simulate instead")
+        out = np.zeros((s.n,) + b.shape[1:])
+        out[keep] = sub
+        return out
 
     def sensitivity(self, outputs, params=None, *, dy_dp=None) -> np.ndarray:
         """d output / d parameter at this steady state, ``(len(outputs), len(params))``.

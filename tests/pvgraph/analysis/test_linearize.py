@@ -749,6 +749,9 @@ def test_a_supply_pressure_whose_rate_reaches_no_state_is_linearised():
                                            r"chain \(2 poles, 1 independent mode\)"),
     ([[0.5, 0.0], [0.0, -1.0]], "unstable", r"1 pole in the right half-plane \(largest real "
                                             r"part 0.5 1/s\)"),
+    # a slow, well-conditioned departure beside a fast pole (a small oil volume) is unstable,
+    # not on the axis within 1e-9 of the fast pole (0.1 1/s)
+    ([[-1e8, 0.0], [0.0, 0.005]], "unstable", r"largest real part 0.005 1/s"),
 ])
 def test_stability_tells_marginal_from_unstable(A, verdict, why):
     """An undamped spring-mass on a conserved volume is marginally stable, not unstable; a
@@ -781,3 +784,33 @@ def test_step_info_of_a_path_beside_a_pole_at_zero_uses_the_paths_final_value():
     assert info["SteadyStateValue"] == pytest.approx(1.0 / k, rel=1e-9)
     with pytest.raises(PvgraphError, match=r"step_info: the path F -> V integrates"):
         lm.step_info("V", "F")
+
+
+def test_an_operating_point_found_with_other_parameters_is_linearised_with_them():
+    """steady_state(system, params={"node.V": 2 V}) moves no steady state, only the dynamics:
+    linearize(system, op) linearised with the system's own volume (pole -beta K / V) and said
+    nothing; it is refused naming the parameter, and linearize(op.system, op) has the pole
+    of the doubled volume."""
+    from pvgraph.analysis import linearize, steady_state
+    s = laminar({"Q": Q}).compile()
+    op = steady_state(s, params={"node.V": 2 * V})
+    with pytest.raises(PvgraphError, match=r"other parameter values than the system's "
+                                           r"\(node.V = .* there, .* here\)"):
+        linearize(s, op, {}, ["node.port.p"])
+    assert linearize(op.system, op, {}, ["node.port.p"]).poles() == pytest.approx(
+        [-BETA * K / (2 * V)], rel=1e-9)
+
+
+def test_the_frequency_response_at_zero_is_the_dc_gain_beside_a_pole_at_zero():
+    """w = 0 on a grid (np.linspace(0, ...)) with a conserved volume off the path: G(0) is
+    the spring's 1/k (numpy raised 'Singular matrix'); on the path through the integrator it
+    is infinite, as dc_gain says."""
+    k, m, c = 7e6, 50.0, 2000.0
+    A = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -k / m, -c / m]])
+    lm = LinearModel(A, np.array([[1.0], [0.0], [1.0 / m]]),
+                     np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]), np.zeros((2, 1)),
+                     ["V", "x", "v"], ["F"], ["x", "V"])
+    g = lm.frequency_response([0.0, 1.0], "x", "F")
+    assert g[0] == pytest.approx(1.0 / k, rel=1e-9)
+    assert g[1] == pytest.approx(1.0 / (k - m + 1j * c), rel=1e-9)
+    assert np.isinf(lm.frequency_response([0.0], "V", "F")[0].real)

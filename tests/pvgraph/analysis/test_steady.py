@@ -206,3 +206,30 @@ def test_a_circuit_without_states_has_no_poles():
     c.connect(ori.b, tank.port)
     op = steady_state(c.compile())
     assert op.poles().shape == (0,)
+
+
+def test_sensitivity_holds_an_undetermined_position_where_it_is():
+    """A 50 kg mass pressed with 10 kN onto a closed oil column (10 cm^2): its position is
+    free (steady_state names it), the pressure F / A is not: dp/dA = -F / A^2 and dp/dF =
+    1 / A exactly, where the singular F_y raised numpy's 'Singular matrix'."""
+    import warnings
+
+    from pvgraph import Circuit
+    from pvgraph.analysis import steady_state
+    from pvgraph.components import Constant, ForceInput, Mass, PistonChamber, Plug
+    A, F = 1e-3, 1e4
+    c = Circuit("held")
+    c.add("ch", PistonChamber(A=A, V0=1e-4, p0=F / A))
+    c.add("plug", Plug())
+    c.add("mass", Mass(m=50.0, b=2000.0))
+    c.add("force", ForceInput())
+    c.add("k", Constant(k=-F))
+    c.connect("ch.port", "plug.port")
+    c.connect("ch.flange", "mass.flange", "force.flange")
+    c.connect("k.y", "force.u")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        op = steady_state(c.compile())
+    assert op.info["undetermined"] == ["mass.flange.x"]
+    got = op.sensitivity(["ch.port.p"], ["ch.A", "k.k"])[0]
+    assert got == pytest.approx([-F / A ** 2, -1.0 / A], rel=1e-9)
