@@ -387,8 +387,15 @@ class Symbols:
               at_start: bool = False) -> None:
         """Declare a zero-crossing ``condition`` (an expression) and the mode switch at it.
 
-        ``at_start=True`` (a switch scheduled in time, ``direction=1``): a run that starts with
-        the condition at or above zero begins with the action applied.
+        The solver finds an event where the condition changes sign between the ends of a step
+        (``direction`` +1: rising only, -1: falling only, 0: either), as IDA's root finding
+        does: a condition that rises and falls again within one step is not seen (write a
+        periodic switch on the time of its next edge, as ``Pulse`` does, or give the run a
+        ``max_step``), and a condition that starts at or past its zero fires only at its next
+        crossing. ``at_start=True``: a run that starts with the condition at or past zero in
+        its direction begins with the action applied: a switch scheduled in time (``t -
+        t_switch``, ``direction=1``), or a state threshold a run may start at (a relay whose
+        pump should switch on at once when it starts at or below its lower pressure).
         """
         self.events.append(EventSpec(name, E.as_expr(condition), direction, action, terminal,
                                      at_start))

@@ -36,6 +36,13 @@ class Solution:
     inner variable it stands for.
     """
 
+    #: why the run ended: it reached ``t_end``, or a terminal event stopped it (its name and
+    #: time); ``terminal`` is that event's record (its state at that instant) or None, and
+    #: ``t_stop`` the time the run ended (with ``t_eval``, the last output row may be before)
+    message: str = ""
+    terminal = None
+    t_stop: float = math.nan
+
     def __init__(self, system: System, t, y, yp, *, events=(), stats=None, mode_log=None,
                  solver="pvgraph"):
         self.system = system
@@ -409,6 +416,14 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         raise PvgraphError(f"{system.name}: simulation stopped early: {res.message}")
     sol = Solution(system, res.t, res.y, res.yp, events=res.events, stats=res.stats,
                    mode_log=getattr(res, "mode_log", None) or system.mode_log, solver=solver)
+    sol.message = res.message
+    terminal = [ev for ev in res.events if "terminal event" in (res.message or "") and
+                f"({ev.name!r})" in res.message]
+    if terminal:
+        sol.terminal = terminal[-1]
+        sol.t_stop = float(terminal[-1].t)
+    else:
+        sol.t_stop = float(t_end)
     if switches:
         sol.stats["state_switches"] = switches
     if calc_initial == "all" and reduction is not None and reduction.given:

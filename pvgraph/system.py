@@ -349,7 +349,12 @@ class System:
             if not due:
                 break
             for k, path, spec in due:
-                spec.action(self.mode_view(path))
+                view = self.mode_view(path)
+                view.t = float(t)       # the action's time: the run's start
+                try:
+                    spec.action(view)
+                finally:
+                    view.t = None
                 applied.append(f"{path}.{spec.name}")
             self.mode_log.append((float(t), tuple(self.modes)))
         return applied

@@ -273,7 +273,8 @@ def angle_power(text: str) -> int:
 def _parse(text: str) -> tuple[float, tuple, int]:
     """``(factor to SI, dimension, angle power)`` of a unit string."""
     src = str(text).strip()
-    if re.search(r"\(\s*[gGaA]\s*\)", src):      # "bar(g)", "psi(a)": not a product with grams
+    if re.search(r"\(\s*[gGaA]\s*\)", src) or \
+            re.fullmatch(r"(?i)(bar|psi|[km]?pa)\s*[ga]", src):   # "bar(g)", "psig", "bara"
         raise UnitError(f"unit {text!r}: a gauge or absolute mark is not read; pressures are "
                         f"gauge here (0 = atmospheric): write the pressure above the atmosphere "
                         f"without it")

@@ -5,7 +5,10 @@ absolute pressure is ``p_abs = p + p_atm``. A fluid is described by
 
 - ``rho`` density [kg/m^3] and ``nu`` kinematic viscosity [m^2/s] (restrictions, lines),
 - ``beta`` bulk modulus of the pure oil [Pa] and ``air`` the entrained free-air volume fraction
-  at atmospheric pressure, compressed polytropically with exponent ``kappa`` (volumes, lines),
+  of the mixture at atmospheric pressure, compressed polytropically with exponent ``kappa``
+  (volumes, lines); the gas is taken beside a chamber's volume ``V`` of oil, ``V_gas = air /
+  (1 - air) V`` at atmospheric pressure (with ``air`` a fraction of the chamber, ``air V``,
+  the air term would be ``1 - air`` of this: 1 % less at air = 0.01, 10 % at 0.1),
 - ``p_vap`` the (absolute) vapour pressure [Pa], below which the oil cavitates.
 
 Effective bulk modulus with free air (Merritt, *Hydraulic Control Systems*, 1967, eq. 2-12;
@@ -21,7 +24,7 @@ term that grows without bound as ``p_abs -> p_vap`` and is exactly zero above
 there)::
 
     V / beta_c(p) = V / beta_e(p) + V / beta * max(dp_cav / s - 1/10, 0)^3
-    s = max(p_abs - p_vap, 1e-2 dp_cav)                (smoothly)
+    s = max(p_abs - p_vap, 1e-2 dp_cav)                (continuous, its slope kinks there)
 
 Drawing a volume ``dV`` out of a closed chamber of volume ``V`` lowers its pressure only to
 about ``p_vap + dp_cav * sqrt(V * dp_cav / (2 * beta * dV))`` (about 40 Pa for 1 % of
@@ -84,8 +87,10 @@ class FluidCompliance(Params):
     beta: float = Field(BETA, gt=1e6, le=1e11,
                         description="Bulk modulus of the oil [Pa] (7000 bar, report A.5)")
     air: float = Field(0.0, ge=0.0, le=0.2,
-                       description="Entrained air volume fraction at atmospheric pressure [-] "
-                                   "(0: constant bulk modulus; report figure A.8)")
+                       description="Entrained air volume fraction of the mixture at "
+                                   "atmospheric pressure [-], the gas taken beside the "
+                                   "chamber's volume of oil: air / (1 - air) of it (0: constant "
+                                   "bulk modulus; report figure A.8)")
     kappa: float = Field(1.4, ge=1.0, le=1.4, description="Polytropic exponent of the air [-]")
     p_min_abs: float = Field(2e4, gt=0.0, description="Lower limit of the absolute pressure "
                                                       "used in the air term [Pa]")

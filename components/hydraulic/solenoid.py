@@ -185,8 +185,11 @@ class TimedOnOffValve(_OnOffBase):
     modes = {"toggled": 0.0}
 
     def _command(self, v, p):
+        # at_start: a run that starts at or after a switching time starts with it applied
+        # (the latest one last), as Step does
         for k, t_k in enumerate(p.t_switch):
-            v.event(f"switch{k}", v.t - t_k, direction=1, action=_set_toggled((k + 1) % 2))
+            v.event(f"switch{k}", v.t - t_k, direction=1, action=_set_toggled((k + 1) % 2),
+                    at_start=True)
         toggled = v.mode("toggled")
         return p.u0 + (1 - 2 * p.u0) * toggled
 

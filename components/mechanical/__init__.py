@@ -7,7 +7,7 @@ component in +x (positive into the component). Two-flange components use ``a`` a
 
 from .end_stop import EndStop
 from .friction import Damper, Friction, LuGreFriction, TwoFlangeDamper
-from .inputs import ForceInput, PositionInput
+from .inputs import ForceInput, ForceSource, PositionInput, VelocityInput, VelocitySource
 from .mass import LEVER_EQUIVALENT_MASS, MAIN_SPOOL_MASS, Fixed, Free, Mass, SpoolMass
 from .rotational import (AngleSensor, Inertia, RotationalDamper, RotationalFixed,
                          RotationalFree, ShaftSpringDamper,
@@ -19,7 +19,7 @@ from .springs import CenteringSpring, LinearSpring, TwoFlangeSpring, TwoStageSpr
 
 __all__ = ["SpoolMass", "Mass", "Fixed", "Free", "LinearSpring", "TwoFlangeSpring", "TwoStageSpring",
            "CenteringSpring", "Friction", "LuGreFriction", "Damper", "TwoFlangeDamper", "EndStop", "ForceInput",
-           "PositionInput", "PositionSensor", "VelocitySensor", "ForceSensor", "RackPinion", "Lever", "Gear",
+           "PositionInput", "VelocityInput", "ForceSource", "VelocitySource", "PositionSensor", "VelocitySensor", "ForceSensor", "RackPinion", "Lever", "Gear",
            "Inertia", "ShaftSpringDamper", "RotationalDamper", "TorqueSource", "TorqueInput",
            "SpeedSource", "SpeedInput", "RotationalFixed", "RotationalFree", "SpeedSensor", "AngleSensor",
            "TorqueSensor", "MAIN_SPOOL_MASS", "LEVER_EQUIVALENT_MASS"]

@@ -1,4 +1,8 @@
-"""Mechanical sources driven by a signal.
+"""Mechanical sources: driven by a signal, or constant.
+
+``ForceSource`` / ``VelocitySource`` are the constant forms (Simscape's ideal force and
+translational velocity sources): ``flange.f = -F`` and ``der(flange.x) = v0``;
+``VelocityInput`` moves the node at the speed of a signal, ``der(flange.x) = u``.
 
 ``ForceInput``: applies the force ``u`` [N] to the node in +x::
 
@@ -22,9 +26,12 @@ twice; there, drive the mass through a stiff spring instead.
 
 from __future__ import annotations
 
-from pvgraph.component import Component, Mechanical, SignalIn
+from pydantic import Field
 
-__all__ = ["ForceInput", "PositionInput"]
+from pvgraph.component import Component, Mechanical, Params, SignalIn, der
+
+__all__ = ["ForceInput", "PositionInput", "VelocityInput", "ForceSource", "ForceSourceParams",
+           "VelocitySource", "VelocitySourceParams"]
 
 
 class ForceInput(Component):
@@ -46,3 +53,47 @@ class PositionInput(Component):
 
     def equations(self, v, p):
         return [v.flange.x - v.u]
+
+
+class VelocityInput(Component):
+    """Velocity source driven by a signal: ``der(flange.x) = u`` [m/s]; it supplies any
+    force (the rotational ``SpeedInput``'s translational twin)."""
+
+    prescribes_motion = True   # sets its port's motion: no inertia needed there
+    ports = {"flange": Mechanical("the driven node"),
+             "u": SignalIn("velocity in +x", "m/s", 0.1)}
+
+    def equations(self, v, p):
+        return [der(v.flange.x) - v.u]
+
+
+class ForceSourceParams(Params):
+    F: float = Field(..., ge=-1e9, le=1e9, description="Force applied to the node in +x [N]")
+
+
+class ForceSource(Component):
+    """Constant force ``F`` on the node in +x: ``flange.f = -F`` (a load, a weight on a
+    rod; the rotational ``TorqueSource``'s twin)."""
+
+    Params = ForceSourceParams
+    ports = {"flange": Mechanical("the loaded node")}
+
+    def equations(self, v, p):
+        return [v.flange.f + p.F]
+
+
+class VelocitySourceParams(Params):
+    v0: float = Field(..., ge=-1e3, le=1e3, description="Velocity of the node in +x [m/s]")
+
+
+class VelocitySource(Component):
+    """Ideal translational velocity source: ``der(flange.x) = v0``; supplies any force (a rod
+    pulled at constant speed; the rotational ``SpeedSource``'s twin)."""
+
+    prescribes_motion = True   # sets its port's motion: no inertia needed there
+    Params = VelocitySourceParams
+    ports = {"flange": Mechanical("the driven node")}
+
+    def equations(self, v, p):
+        v.observe("P", -v.flange.f * p.v0, "W", "mechanical power delivered")
+        return [der(v.flange.x) - p.v0]

@@ -168,7 +168,8 @@ class Pulse(Component):
     (periods done, and whether the pulse is on), so the condition only grows between two
     edges and the solver stops at every edge, however long its steps (a condition on
     ``cos(2 pi t / period)`` rises and falls within one step and is missed where the step
-    spans a period). A run starts the train afresh at ``t_start``.
+    spans a period). A run that starts after ``t_start`` starts with the train where it is
+    at that time (the edges before it applied, as ``Step`` does).
     """
 
     Params = PulseParams
@@ -178,14 +179,38 @@ class Pulse(Component):
     def equations(self, v, p):
         on = v.mode("on")
         t_next = p.t_start + (v.mode("periods") + p.duty * on) * p.period
-        v.event("edge", v.t - t_next, direction=1, action=_next_edge, at_start=True)
+        # the catch-up at a late start uses the values given (the parameters are symbols here)
+        given = self.params
+        v.event("edge", v.t - t_next, direction=1,
+                action=_NextEdge(given.t_start, given.period, given.duty), at_start=True)
         return [v.y - (p.offset + p.height * E.where(on > 0.5, 1.0, 0.0))]
 
 
-def _next_edge(view):
-    """At a rise: on; at a fall: off, and one period more done."""
-    if view["on"] > 0.5:
-        view["on"] = 0.0
-        view["periods"] = view["periods"] + 1.0
-    else:
-        view["on"] = 1.0
+class _NextEdge:
+    """The action at an edge: at a rise on, at a fall off and one period more done. At the
+    start of a run past ``t_start`` (the action applied there once) the train is moved on to
+    where it is at that time, with the values the run was compiled with."""
+
+    def __init__(self, t_start, period, duty):
+        self.t_start, self.period, self.duty = t_start, period, duty
+
+    def __call__(self, view):
+        if view["on"] > 0.5:
+            view["on"] = 0.0
+            view["periods"] = view["periods"] + 1.0
+        else:
+            view["on"] = 1.0
+        t = view.t
+        if t is None or not all(isinstance(x, (int, float))
+                                for x in (self.t_start, self.period, self.duty)):
+            return
+        t_next = self.t_start + (view["periods"] + self.duty * view["on"]) * self.period
+        slack = 1e-9 * self.period
+        if t_next > t + slack:      # at an edge: the next one lies ahead
+            return
+        k = math.floor((t - self.t_start + slack) / self.period)
+        phase = t - self.t_start - k * self.period
+        if phase + slack < self.duty * self.period:     # on, the fall of period k ahead
+            view["periods"], view["on"] = float(k), 1.0
+        else:                                           # off, the rise of period k + 1 ahead
+            view["periods"], view["on"] = float(k + 1), 0.0

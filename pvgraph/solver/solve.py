@@ -305,7 +305,7 @@ def _first_hit(found, event_list, interpolate, records, t_old, t_new):
     return None
 
 
-def _chattering(state, te, fired, event_list, h):
+def _chattering(state, te, fired, event_list, h, solver_name=SOLVER_NAME):
     """``(first time, count)`` of the actions in a row with no time between them (their zeros
     apart by rounding only); SolverError once the count reaches CHATTER_EVENTS."""
     t_first, count, t_last = state if state is not None else (te, 0, te)
@@ -315,7 +315,7 @@ def _chattering(state, te, fired, event_list, h):
     if count >= CHATTER_EVENTS:
         names = ", ".join(repr(event_list[j].name) for j in fired)
         raise SolverError(
-            f"{SOLVER_NAME}: event {names} fired {count} times in a row between t = "
+            f"{solver_name}: event {names} fired {count} times in a row between t = "
             f"{t_first:.12g} and {te:.12g}, with no time between its zeros: the model switches "
             f"without end (a sliding mode or Zeno behaviour, e.g. a relay without hysteresis "
             f"whose switch reverses the motion that triggered it). Give the switch a "

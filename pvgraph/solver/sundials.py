@@ -146,7 +146,7 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
     .. [2] scikit-sundae, https://github.com/NatLabRockies/scikit-sundae
     """
     sksundae = _import_sksundae()
-    from .solve import check_arguments
+    from .solve import _chattering, check_arguments
     t0, t_end, y, yp, rtol, atol_arr, var_names = check_arguments(
         t_span, y0, yp0, rtol, atol, max_steps, var_names)
     n = y.size
@@ -249,6 +249,7 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
     solver = None
     restarted = False
     n_restarts, t_failed = 0, -np.inf
+    chatter = None      # (first time, count, last time) of actions in a row at one instant
     with contextlib.redirect_stdout(captured), warnings.catch_warnings(), \
             np.errstate(all="ignore"):
         warnings.filterwarnings("ignore", message=SPARSE_WARNING)
@@ -368,6 +369,9 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                 message = f"A terminal event ({ev.name!r}) occurred at t = {te:.9g}."
                 stopped = True      # the output times after it are not reached
                 break
+            # actions in a row at one instant (a sliding mode): stopped as the built-in solver
+            # stops them, instead of running to max_steps
+            chatter = _chattering(chatter, te, fired, event_list, 0.0, SOLVER_NAME)
             for j in fired:
                 ye, ype = event_list[j].apply(te, ye, ype)
             t_start, y, yp = te, ye, ype

@@ -455,3 +455,36 @@ def test_an_empty_t_eval_and_a_start_that_is_no_mapping_are_refused():
         simulate(c, 0.1, t_eval=[])
     with pytest.raises(PvgraphError, match=r"start takes a mapping .* got list"):
         simulate(c, 0.1, start=[("node.port.p", 1e5)])
+
+
+def test_a_run_stopped_by_a_terminal_event_says_so():
+    """A volume filled at 0.1 L/s to a terminal event at 50 bar: the run ends at V p / (beta Q)
+    = 0.0714 s, and the Solution says it (message, t_stop, the event's record with its state),
+    where only sol.events told it and, with t_eval, the last row was at t = 0."""
+    from pydantic import Field
+
+    from pvgraph import Component, Hydraulic, Params
+    from pvgraph.components import FlowSource, VolumeNode
+
+    class StopParams(Params):
+        p_max: float = Field(..., description="Pressure that ends the run [Pa]")
+
+    class Stopper(Component):
+        Params = StopParams
+        ports = {"port": Hydraulic("watched")}
+
+        def equations(self, v, p):
+            v.event("overpressure", v.port.p - p.p_max, direction=1, terminal=True)
+            return [v.port.q]
+    c = Circuit("t")
+    c.add("src", FlowSource(Q=1e-4))
+    c.add("n", VolumeNode(V=1e-3, beta=7e8))
+    c.add("stop", Stopper(p_max=50e5))
+    c.connect("src.port", "n.port", "stop.port")
+    sol = simulate(c, 1.0, t_eval=np.linspace(0.0, 1.0, 11))
+    assert sol.t_stop == pytest.approx(1e-3 * 50e5 / (7e8 * 1e-4), rel=1e-9)
+    assert "terminal event ('stop.overpressure')" in sol.message
+    assert sol.terminal.name == "stop.overpressure"
+    assert sol.terminal.y[sol.system.index["n.port.p"]] == pytest.approx(50e5, rel=1e-6)
+    full = simulate(c, 0.05)
+    assert full.terminal is None and full.t_stop == 0.05 and "end" in full.message

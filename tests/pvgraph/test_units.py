@@ -285,5 +285,8 @@ def test_a_prefix_on_a_unit_that_takes_none_is_told_with_the_factor(text, hint):
 
 
 def test_a_gauge_or_absolute_mark_is_refused_not_read_as_grams():
-    with pytest.raises(UnitError, match="a gauge or absolute mark is not read"):
-        to_si("10 bar(g)")
+    # 'barg', 'psig', 'bara' were told "did you mean 'bar'?" without the reason
+    for text in ("10 bar(g)", "10 barg", "150 psig", "1 bara", "5 kPag"):
+        with pytest.raises(UnitError, match="a gauge or absolute mark is not read"):
+            to_si(text)
+    assert to_si("10 bar") == 1e6 and to_si("3 Pa") == 3.0

@@ -153,3 +153,22 @@ def test_pwm_duty_cycle_lag_and_steady_flow(kind, tau):
                    rtol=1e-8, t_eval=t)
     assert sol["dut.d"][0] == pytest.approx(DT * (1 - math.exp(-1)), abs=1e-5)
     assert sol.final("dut.q") == pytest.approx(PWMValve(kind=kind).params.flow(DT, dp), rel=1e-3)
+
+
+def test_a_timed_valve_started_after_a_switching_time_starts_switched():
+    """Toggled at 0.1, 0.2, 0.3 s from closed: a run from 0.15 s (or exactly 0.1 s) starts
+    with the valve commanded open, as Step does; it stayed closed until 0.2 s."""
+    from pvgraph import Circuit
+    from pvgraph.components import PressureSource, Tank, TimedOnOffValve
+    from pvgraph.simulate import simulate
+    for t0 in (0.15, 0.1):
+        c = Circuit("timed")
+        c.add("src", PressureSource(p0="100 bar"))
+        c.add("v", TimedOnOffValve(t_switch=(0.1, 0.2, 0.3), A="5 mm^2", tau_open="10 ms"))
+        c.add("t", Tank())
+        c.connect("src.port", "v.a")
+        c.connect("v.b", "t.port")
+        sol = simulate(c, 0.19, t_start=t0, t_eval=[0.19])
+        # opening from the run's start with its lag (it stayed closed: 0.0)
+        assert sol.final("v.s") == pytest.approx(1.0 - math.exp(-(0.19 - t0) / 0.01), rel=1e-5)
+        assert sol.final("v.a.q") > 0.0         # and passing flow from the source

@@ -163,3 +163,19 @@ def test_pulse_offset_height_and_first_rise():
     assert sol["i.y"][-1] == pytest.approx(-0.05 + 9 * (0.025 - 0.075) + 0.0, abs=1e-9)
     with pytest.raises(ParameterError, match="duty"):
         Pulse(period=0.1, duty=1.0)
+
+
+@pytest.mark.parametrize("t0, on", [(0.0005, 0.0), (0.0015, 0.0), (0.0002, 1.0), (0.5, 1.0)])
+def test_a_run_started_inside_a_pulse_train_starts_where_the_train_is(t0, on):
+    """A 1 ms, 30 % train run from t0 for 10 ms: off at 0.5 ms and 1.5 ms, on at 0.2 ms and at
+    0.5 s (a rise), 20 edges and the integral 0.003 (it stayed on, no edge, 0.010)."""
+    from pvgraph.components.signal import Integrator, Pulse
+    from pvgraph.simulate import simulate
+    c = Circuit("pwm")
+    c.add("pwm", Pulse(period="1 ms", duty=0.3))
+    c.add("i", Integrator())
+    c.connect("pwm.y", "i.u")
+    sol = simulate(c, t0 + 0.01, t_start=t0, t_eval=[t0, t0 + 0.01])
+    assert sol["pwm.y"][0] == on
+    assert sol["i.y"][-1] - sol["i.y"][0] == pytest.approx(0.003, abs=1e-9)
+    assert len(sol.events) == 20

@@ -125,3 +125,23 @@ def test_sundials_backend_stops_where_ida_no_longer_advances_t():
     slope = (sol["cyl.A.p"][1] - sol["cyl.A.p"][0]) / 0.01
     assert slope == pytest.approx(7e8 * 1e-4 / 1.1e-4, rel=0.02)
     assert sol["mass.flange.x"][-1] == pytest.approx(0.1, abs=1e-4)
+
+
+def test_sundials_backend_stops_a_sliding_mode_at_once():
+    """x' = -sign(x) switched by an event on x with no hysteresis reaches 0 at t = 1 and
+    switches there without end: both backends stop naming the event (IDA ran to max_steps,
+    15 s for 20 000 steps)."""
+    pytest.importorskip("sksundae")
+    from pvgraph.errors import SolverError
+    state = {"s": 1.0}
+
+    def flip(t, y, yp):
+        state["s"] = -state["s"]
+        return y, np.array([-state["s"]])
+    relay = Event(lambda t, y, yp: y[0], 0, False, flip, "relay")
+    for solve in (solve_dae, solve_dae_sundials):
+        state["s"] = 1.0
+        with pytest.raises(SolverError, match=r"event 'relay' fired 50 times in a row between "
+                                              r"t = 1 and 1"):
+            solve(lambda t, y, yp: np.array([yp[0] + state["s"]]), (0.0, 2.0), [1.0], [-1.0],
+                  rtol=1e-6, atol=1e-9, events=[relay], max_steps=20000)
