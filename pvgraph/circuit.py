@@ -546,6 +546,10 @@ def parameter_values(values, where: str) -> dict:
     if names:
         raise ParameterError(f"{where}: parameter names are strings ('component.field'), "
                              f"got {names[0]!r}")
+    seen: set = set()
+    twice = sorted({k for k, _ in pairs if k in seen or seen.add(k)})
+    if twice:       # a generated list (a sweep table, merged settings) would drop one silently
+        raise ParameterError(f"{where}: parameters given twice: {twice}; give each once")
     return dict(pairs)
 
 

@@ -214,6 +214,9 @@ class CalibrationResult:
                      f" -> {self.rms_weighted:.3g} over {len(self.measured)} data, "
                      f"{self.dof} degrees of freedom, {self.nfev} model evaluations, "
                      f"{self.wall_time:.1f} s")
+        if not self.success:
+            lines.append(f"NOT CONVERGED: the search stopped before the optimum ({self.message}); "
+                         f"the estimates and intervals are those of where it stopped")
         if self.unidentifiable:
             lines.append("not identifiable from these data: " + ", ".join(self.unidentifiable))
         if self.dof <= 0 and not np.all(np.isfinite(self.ci_low)):
@@ -573,6 +576,10 @@ def calibrate(predict: Callable[[dict], Sequence[float]], measured: Sequence[flo
                 warnings.warn(f"calibrate: {prm.name} ends on its {side} bound {bound!r}: the "
                               f"data may want it beyond, and its interval (which assumes a free "
                               f"parameter) means little there", UserWarning, stacklevel=2)
+    if not res.success:
+        warnings.warn(f"calibrate: the search stopped before converging ({res.message}): the "
+                      f"estimates and intervals are those of where it stopped, not of the "
+                      f"optimum; raise max_nfev or start nearer", UserWarning, stacklevel=2)
     wall = time.perf_counter() - t0
     return CalibrationResult(
         parameters=params, estimates=theta, std_errors=std, ci_low=theta - half,

@@ -836,8 +836,18 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
     param_names = list(cases[0])
     records: dict[int, CaseResult] = {}
     log_path = None if out is None else os.path.join(os.fspath(out), LOG_NAME)
+    identity = run_identity(run)
     if resume and os.path.exists(log_path):
         records = {i: r for i, r in _read_log(log_path, cases).items() if r.ok}
+        before = _recorded_identity(log_path)
+        if records and before is not None and before != identity:
+            from ..errors import PlausibilityWarning
+            _warnings.warn(PlausibilityWarning(
+                f"resume: {log_path} was recorded by another run ({before}); this one is "
+                f"{identity}: its {len(records)} finished case"
+                f"{'s' if len(records) != 1 else ''} stay as recorded and the rest come from "
+                f"this run. Give overwrite=True (--overwrite) to run every case again."),
+                stacklevel=2)
     todo = [i for i in range(len(cases)) if i not in records]
     if check is not None:
         _check_values(check, cases, todo)
@@ -846,7 +856,8 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
         workers = min(workers, max(len(todo), 1), MAX_PROCESS_WORKERS)
         _check_picklable(run, cases)
     tick = _progress_callback(progress, len(cases))
-    log = _open_log(log_path, cases, param_names, units, records) if log_path else None
+    log = _open_log(log_path, cases, param_names, units, records, identity) \
+        if log_path else None
     done = len(records)
 
     def report(res: CaseResult) -> None:
@@ -954,7 +965,31 @@ def _recorded(path) -> str:
         return "unreadable"
 
 
-def _open_log(path, cases, param_names, units, kept):
+def run_identity(run) -> str:
+    """What a sweep's record says made it: ``run.sweep_identity()`` where the run has one
+    (:class:`CompiledRun`: its circuit's model text, outputs and settings, hashed), else the
+    function's module and name (with a partial's arguments)."""
+    own = getattr(run, "sweep_identity", None)
+    if callable(own):
+        return str(own())
+    func, extra = run, ""
+    if isinstance(run, functools.partial):
+        func = run.func
+        extra = f" with {run.args!r} {run.keywords!r}"
+    name = getattr(func, "__qualname__", type(func).__name__)
+    return f"{getattr(func, '__module__', '?')}.{name}{extra}"
+
+
+def _recorded_identity(path):
+    """The run identity in the header of a record, or None (an older record)."""
+    try:
+        with open(path) as f:
+            return json.loads(f.readline()).get("run")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def _open_log(path, cases, param_names, units, kept, identity=None):
     """Start ``cases.jsonl`` afresh (header, then the kept records) and return it for appending."""
     folder = os.path.dirname(path)
     os.makedirs(folder, exist_ok=True)
@@ -962,6 +997,7 @@ def _open_log(path, cases, param_names, units, kept):
     with open(tmp, "w") as f:
         f.write(json.dumps({"pvgraph_sweep": LOG_VERSION, "n_cases": len(cases),
                             "param_names": param_names, "units": dict(units or {}),
+                            "run": identity,
                             "cases": [{k: _json_value(v) for k, v in c.items()}
                                       for c in cases]}, default=str) + "\n")
         for i in sorted(kept):
@@ -1081,6 +1117,23 @@ class CompiledRun:
         self.t_end, self.steady, self.rtol, self.tol = t_end, bool(steady), rtol, tol
         self.reduce, self.warm = reduce, bool(warm)
         self.key = key or uuid.uuid4().hex
+
+    def sweep_identity(self) -> str:
+        """What made a sweep's record (:func:`run_identity`): the circuit (its model-file
+        text hashed, or its builder's name), the outputs and the run's settings."""
+        import hashlib
+        source = self.circuit if self.circuit is not None else self.build
+        what = getattr(source, "__qualname__", None)
+        if what is None:
+            try:
+                from ..modelfile import dumps
+                text = dumps(source, "toml")
+                what = f"{source.name} #{hashlib.sha256(text.encode()).hexdigest()[:12]}"
+            except Exception:   # noqa: BLE001  (a part outside the library: its name only)
+                what = getattr(source, "name", type(source).__name__)
+        how = f"t_end {self.t_end!r}, rtol {self.rtol!r}" if not self.steady else \
+            f"steady, tol {self.tol!r}"
+        return f"CompiledRun of {what}, outputs {sorted(self.outputs)}, {how}"
 
     # the per-process cache ------------------------------------------------------------------
     def _cache(self) -> dict:

@@ -232,6 +232,11 @@ class EventTracker:
             falling = a > 0.0 >= b
             if not (rising or falling):
                 continue
+            if b == 0.0 and abs(a) == AFTER_CROSSING:
+                # from just past the zero it fired at to exactly zero: the function stays at
+                # its zero (a clipped quantity, min(t - t0, 0)), not a crossing back (IDA
+                # likewise masks a root function that stays at zero)
+                continue
             if (ev.direction > 0 and not rising) or (ev.direction < 0 and not falling):
                 continue
             found.append((self._locate(ev, t_old, t_new, a, b, interp),

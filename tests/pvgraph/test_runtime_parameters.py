@@ -125,6 +125,13 @@ def test_parameter_values_are_a_mapping_or_name_value_pairs_everywhere():
         simulate(s, 1.0, params=["orifice.K"])
     with pytest.raises(ParameterError, match=r"recompile=...\) takes True or False, got 'no'"):
         s.with_params({"orifice.K": 2 * K}, recompile="no")
+    # a name twice in the pairs (a generated table): refused, where the last one won silently
+    twice = [("orifice.K", 2 * K), ("orifice.K", 3 * K)]
+    with pytest.raises(ParameterError, match=r"steady_state: params: parameters given twice: "
+                                             r"\['orifice.K'\]"):
+        steady_state(s, params=twice)
+    with pytest.raises(ParameterError, match="given twice"):
+        simulate(s, 1.0, params=twice)
 
 
 def test_invalid_value_is_rejected_by_the_parameter_model():

@@ -309,3 +309,20 @@ def test_an_estimate_on_its_bound_is_warned_of():
         res = calibrate(lambda th: th["a"] * x, 3.0 * x,
                         [FitParameter("a", 1.0, lower=0.0, upper=2.0)])
     assert res.estimates[0] == pytest.approx(2.0, rel=1e-6)
+
+
+def test_a_search_stopped_before_the_optimum_says_so():
+    """y = 2 exp(-3 x) from (1, 0.5) with max_nfev=3: the search stops far off (a = 1.31,
+    b = -1.60, intervals excluding the truth); a warning and the table say it did not
+    converge, where both read like a finished fit."""
+    x = np.linspace(0.0, 1.0, 20)
+
+    def predict(theta):
+        return theta["a"] * np.exp(theta["b"] * x)
+    with pytest.warns(UserWarning, match=r"calibrate: the search stopped before converging"):
+        fit = calibrate(predict, 2.0 * np.exp(-3.0 * x), {"a": 1.0, "b": 0.5}, max_nfev=3)
+    assert not fit.success
+    assert "NOT CONVERGED: the search stopped before the optimum" in fit.table()
+    done = calibrate(predict, 2.0 * np.exp(-3.0 * x), {"a": 1.0, "b": 0.5})
+    assert done.success and "NOT CONVERGED" not in done.table()
+    assert done["a"] == pytest.approx(2.0, rel=1e-5)

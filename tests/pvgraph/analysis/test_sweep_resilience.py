@@ -237,3 +237,23 @@ def test_resume_and_overwrite_take_bools_only(tmp_path):
         with pytest.raises(SweepError, match=f"{flag} takes True or False, got {value!r}"):
             sweep(square, grid({"x": [5.0]}), backend="serial", out=tmp_path, **{flag: value})
     assert len(_lines(tmp_path / "cases.jsonl")) == 3        # nothing replaced
+
+
+def cube(x):
+    return {"y": x ** 3}
+
+
+def test_resume_with_another_run_says_the_record_mixes_two(tmp_path):
+    """The record names the run that made it; resuming with another function warns that the
+    finished cases stay as the first run made them (they were mixed into one table
+    silently), and overwrite=True runs them all again with the new one."""
+    from pvgraph.errors import PlausibilityWarning
+    cases = grid({"x": [1.0, 2.0]})
+    sweep(square, cases, backend="serial", out=tmp_path)
+    head = json.loads((tmp_path / "cases.jsonl").read_text().splitlines()[0])
+    assert head["run"].endswith("test_sweep_resilience.square")
+    with pytest.warns(PlausibilityWarning, match=r"recorded by another run \(.*square\); this "
+                                                 r"one is .*cube: its 2 finished cases stay"):
+        sweep(cube, cases, backend="serial", out=tmp_path, resume=True)
+    again = sweep(cube, cases, backend="serial", out=tmp_path, overwrite=True)
+    assert [r.outputs["y"] for r in again] == [1.0, 8.0]

@@ -221,3 +221,18 @@ def test_a_relay_without_hysteresis_is_named_as_chattering():
     with pytest.raises(SolverError, match=r"event 'relay' fired 50 times in a row between "
                                           r"t = 1 and 1.*sliding mode or Zeno"):
         solve_dae(residual, (0.0, 2.0), [1.0], [-1.0], events=[ev])
+
+
+def test_an_event_function_that_reaches_zero_and_stays_there_fires_once():
+    """g = min(t - 0.5, 0) reaches zero and stays (a clipped quantity, a saturated command):
+    one event, as IDA, where the built-in solver read each following step's exact zero as a
+    crossing back from the side it had fired to and ran the action 19 973 times."""
+    fired = []
+
+    def act(t, y, yp):
+        fired.append(t)
+    flat = Event(lambda t, y, yp: min(t - 0.5, 0.0), 0, False, act, "flat")
+    res = solve_dae(lambda t, y, yp: np.array([yp[0] - 1.0]), (0.0, 1.0), [0.0], [1.0],
+                    events=[flat], max_steps=20000)
+    assert res.success and len(fired) == 1 and 0.5 <= fired[0] <= 1.0
+    assert res.y[-1, 0] == pytest.approx(1.0, rel=1e-9)
