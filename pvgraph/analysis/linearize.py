@@ -41,7 +41,7 @@ from typing import Callable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from ..errors import ParameterError, PvgraphError
+from ..errors import ParameterError, PlausibilityWarning, PvgraphError
 from ..system import System
 from .steady import OperatingPoint, steady_state
 
@@ -533,7 +533,8 @@ def _jacobians(system, op):
 def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarray] | None,
               outputs: Sequence[str], *, states: str = "differential",
               direct: Mapping[str, np.ndarray] | None = None,
-              held: Mapping[str, Sequence[str]] | None = None) -> LinearModel:
+              held: Mapping[str, Sequence[str]] | None = None,
+              warn_stops: bool = True) -> LinearModel:
     """Linearise ``system`` at ``op``.
 
     Parameters
@@ -561,6 +562,9 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
         the states or the outputs asked for, the input is refused with the unknowns it sets;
         where it reaches neither (a supply pressure whose rate only changes the flow into a
         volume at that pressure, not asked for) the model is exact and is returned.
+    warn_stops : bool
+        Warn where the operating point rests on an end stop (a cylinder's ``F_stop``):
+        a load that can only move has no other steady state (default True).
     """
     if states != "differential":
         raise PvgraphError(f"linearize: states={states!r}; the states are the differential "
@@ -683,7 +687,32 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
     # a bare integrator: it is taken out of the model (a joined shaft keeps its twist)
     from .steady import reduce_drift
     A, B, C, x, state_names = reduce_drift(op, A, B, C, x)
+    if warn_stops:
+        _warn_on_stops(system, op, yp_op)
     return LinearModel(A, B, C, D, state_names, list(inputs), list(outputs), op)
+
+
+def _warn_on_stops(system, op, yp):
+    """Say where the operating point rests on an end stop (a cylinder's ``F_stop``): a
+    circuit whose load can only move has no other steady state, and the model then is that
+    of the rod pressed on its stop, not of the motion."""
+    stops = [nm for nm in system.observed if nm.endswith(".F_stop")]
+    if not stops:
+        return
+    try:
+        got = system.evaluate_observed(np.array([op.t]), op.y[None, :], yp[None, :],
+                                       [list(system.modes)])
+    except Exception:   # noqa: BLE001  (an output that cannot be evaluated: nothing to say)
+        return
+    on = [(nm, float(got[nm][0])) for nm in stops if abs(float(got[nm][0])) > 1.0]
+    if on:
+        told = ", ".join(f"{nm} = {f / 1e3:.4g} kN" for nm, f in on[:3])
+        warnings.warn(PlausibilityWarning(
+            f"linearize: the operating point rests on an end stop ({told}): the model is "
+            f"that of the rod pressed on its stop. Where the load only ever moves (a rod "
+            f"driven at a steady speed), no other steady state exists; linearise along the "
+            f"motion from a simulated instant instead (an OperatingPoint of sol.y, sol.yp at "
+            f"that time)."), stacklevel=3)
 
 
 def input_sensitivity(build: Callable[[dict], object], u0: Mapping[str, float], name: str,

@@ -75,7 +75,8 @@ class OperatingPoint:
         if got is None and not self.system.differential.any():
             got = np.zeros(0, dtype=complex)    # no state, no pole
         if got is None:
-            got = linearize(self.system, self, None, [self.system.names[0]]).poles()
+            got = linearize(self.system, self, None, [self.system.names[0]],
+                            warn_stops=False).poles()
             self.info["poles"] = got
         return np.asarray(got)
 

@@ -814,3 +814,34 @@ def test_the_frequency_response_at_zero_is_the_dc_gain_beside_a_pole_at_zero():
     assert g[0] == pytest.approx(1.0 / k, rel=1e-9)
     assert g[1] == pytest.approx(1.0 / (k - m + 1j * c), rel=1e-9)
     assert np.isinf(lm.frequency_response([0.0], "V", "F")[0].real)
+
+
+def test_an_operating_point_on_an_end_stop_is_told():
+    """100 bar on a cylinder's cap side, its rod side metered out to tank: the rod can only
+    move, so the one steady state is the rod pressed on its stop (F_stop 14.6 kN), and the
+    model (dv/dA = 0) is that of the stop, not of the 0.21 m/s motion: a warning says so."""
+    import math as _m
+
+    from pvgraph.components import Cylinder, Mass, Orifice, PressureSource
+    from pvgraph.errors import PlausibilityWarning
+
+    def build(u):
+        c = Circuit("meter-out")
+        c.add("src", PressureSource(p0="100 bar"))
+        c.add("cyl", Cylinder(A_A=_m.pi * 0.05 ** 2 / 4, A_rod=_m.pi * 0.028 ** 2 / 4,
+                              stroke="500 mm", V_dead_A="20 cm^3", V_dead_B="20 cm^3",
+                              p0_A="100 bar"))
+        c.add("o", Orifice(A=u["o.A"]))
+        c.add("m", Mass(m="50 kg", b=1000.0, x0="100 mm"))
+        c.add("f", ForceInput())
+        c.add("k", Constant(k=-5000.0))
+        c.add("t", Tank())
+        c.connect("src.port", "cyl.A")
+        c.connect("cyl.B", "o.a")
+        c.connect("o.b", "t.port")
+        c.connect("cyl.flange", "m.flange", "f.flange")
+        c.connect("k.y", "f.u")
+        return c
+    with pytest.warns(PlausibilityWarning, match=r"rests on an end stop \(cyl.F_stop = "
+                                                 r"14.\d+ kN\)"):
+        linearize_circuit(build, {"o.A": 3e-6}, ["m.v"])
