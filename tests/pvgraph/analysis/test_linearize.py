@@ -845,3 +845,20 @@ def test_an_operating_point_on_an_end_stop_is_told():
     with pytest.warns(PlausibilityWarning, match=r"rests on an end stop \(cyl.F_stop = "
                                                  r"14.\d+ kN\)"):
         linearize_circuit(build, {"o.A": 3e-6}, ["m.v"])
+
+
+@pytest.mark.parametrize("zeta", [0.005, 0.0073, 0.02])
+def test_gain_margin_of_a_lightly_damped_hydraulic_resonance(zeta):
+    """Merritt's valve-controlled position loop Kv / (s (s^2/wh^2 + 2 zeta s/wh + 1)): the gain
+    margin is 2 zeta wh / Kv (Hydraulic Control Systems, ch. 7). Sampled at 200 points per
+    decade, the resonance's peak fell between two points and the margin came out 35 % high at
+    zeta 0.0073 (88 % at 0.005), a design unstable at gain 5 passed as stable."""
+    pytest.importorskip("control")
+    Kv, wh = 1.2865, 356.75
+    A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, -wh ** 2, -2 * zeta * wh]])
+    lm = LinearModel(A, np.array([[0.0], [0.0], [Kv * wh ** 2]]),
+                     np.array([[1.0, 0.0, 0.0]]), np.zeros((1, 1)), ["x", "v", "a"], ["u"],
+                     ["x"])
+    m = lm.margins("x", "u")
+    assert m.gain == pytest.approx(2 * zeta * wh / Kv, rel=1e-3)
+    assert m.w_gain == pytest.approx(wh, rel=1e-3)
