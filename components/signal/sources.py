@@ -149,6 +149,13 @@ class Sine(Component):
     def equations(self, v, p):
         return [v.y - (p.offset + p.amplitude * E.sin(2.0 * math.pi * p.f * v.t + p.phase))]
 
+    @staticmethod
+    def max_step_hint(value):
+        """A tenth of the period: ``simulate`` bounds its steps by it where no ``max_step``
+        is given, so a wave that drives only algebraic parts (a pressure source feeding a
+        check valve) is not stepped over."""
+        return 0.1 / value("f")
+
 
 class PulseParams(Params):
     height: float = Field(1.0, ge=-1e12, le=1e12, description="Size of the pulses [unit of y]")
