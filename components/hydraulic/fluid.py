@@ -53,7 +53,7 @@ import math
 import os
 import warnings
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from pvgraph import expr as E
 from pvgraph.component import Params
@@ -100,6 +100,21 @@ class FluidCompliance(Params):
                           description="Width of the cavitation limit above p_vap [Pa]")
     p_atm: float = Field(P_ATM, gt=5e4, le=1.2e5,
                          description="Atmospheric reference of the gauge pressures [Pa]")
+
+    @model_validator(mode="after")
+    def _start_above_vapour(self):
+        # a chamber started below the vapour pressure would start with a cavity larger than
+        # itself (void fraction above 1, oil of negative volume)
+        for name in type(self).model_fields:
+            value = getattr(self, name)
+            if name.startswith("p0") and isinstance(value, float) and \
+                    value + self.p_atm < self.p_vap:
+                raise ValueError(
+                    f"{name} = {value:g} Pa (gauge) is below the vapour pressure "
+                    f"({self.p_vap:g} Pa absolute, {self.p_vap - self.p_atm:g} Pa gauge): no "
+                    f"oil holds there; start at or above it (a cavitated chamber: "
+                    f"{name}={self.p_vap - self.p_atm:g})")
+        return self
 
 
 class Fluid(FluidCompliance):

@@ -616,7 +616,10 @@ def linearize(system: System, op: OperatingPoint, inputs: Mapping[str, np.ndarra
         through its own rate du/dt, which the model cannot hold: where that rate reaches
         the states or the outputs asked for, the input is refused with the unknowns it sets;
         where it reaches neither (a supply pressure whose rate only changes the flow into a
-        volume at that pressure, not asked for) the model is exact and is returned.
+        volume at that pressure, not asked for) the model is exact and is returned. Not seen:
+        a rate that reaches only an unknown the compiler removed. The flow a pressure source
+        delivers into a volume at its own pressure, asked for as an output, misses its
+        ``s V / beta`` term.
     warn_stops : bool
         Warn where the operating point rests on an end stop (a cylinder's ``F_stop``):
         a load that can only move has no other steady state (default True).

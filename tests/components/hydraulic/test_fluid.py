@@ -248,3 +248,18 @@ def test_use_fluid_takes_fluid_properties_only_and_checks_each_value():
         Fluid(beta="5 bar")
     with pytest.raises(ParameterError, match=r"rhoo = 5: not a parameter of Fluid; it accepts"):
         Fluid(rhoo=5)
+
+
+def test_a_chamber_cannot_start_below_the_vapour_pressure():
+    """p0_A = -1 bar (1325 Pa absolute) lies below p_vap (2000 Pa): the chamber would start with
+    a cavity larger than itself (void fraction 1.025, -5.5 cm^3 of oil), and compressing it
+    lowered its pressure. Refused by name with the lowest start; the vapour pressure itself
+    is a valid start."""
+    from pvgraph import ParameterError
+    from pvgraph.components import Cylinder, VolumeNode
+    with pytest.raises(ParameterError, match=r"p0_A = -100000 Pa \(gauge\) is below the vapour "
+                                             r"pressure .* p0_A=-99325"):
+        Cylinder(A_A=1e-3, A_rod=5e-4, stroke=0.3, V_dead_A=1e-5, V_dead_B=1e-5, p0_A="-1 bar")
+    with pytest.raises(ParameterError, match=r"p0 = -100000 Pa"):
+        VolumeNode(V=1e-3, p0=-1e5)
+    assert VolumeNode(V=1e-3, p0=-P_ATM + P_VAP).params.p0 == -P_ATM + P_VAP
