@@ -53,13 +53,15 @@ class _Entry:
 
 class ModeView:
     """A component's view of the system's discrete modes: ``modes["open"] = 1.0``; ``t`` is the
-    time of the event whose action receives it (None outside a run)."""
+    time of the event whose action receives it (None outside a run); ``starting`` is True
+    where the action is applied at a run's start (an ``at_start`` event already due)."""
 
     def __init__(self, values: list, index: dict[str, int], owner: str):
         self._values = values
         self._index = index
         self._owner = owner
         self.t = None
+        self.starting = False   # True while an at-start action is applied at a run's start
 
     def __getitem__(self, name):
         return self._values[self._slot(name)]
@@ -351,10 +353,12 @@ class System:
             for k, path, spec in due:
                 view = self.mode_view(path)
                 view.t = float(t)       # the action's time: the run's start
+                view.starting = True
                 try:
                     spec.action(view)
                 finally:
                     view.t = None
+                    view.starting = False
                 applied.append(f"{path}.{spec.name}")
             self.mode_log.append((float(t), tuple(self.modes)))
         return applied

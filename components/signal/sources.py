@@ -196,7 +196,8 @@ class Pulse(Component):
 class _NextEdge:
     """The action at an edge: at a rise on, at a fall off and one period more done. At the
     start of a run past ``t_start`` (the action applied there once) the train is moved on to
-    where it is at that time, with the values the run was compiled with."""
+    where it is at that time, with the values the circuit was built with (a run that both
+    starts late and changes the period as a runtime parameter starts from those)."""
 
     def __init__(self, t_start, period, duty):
         self.t_start, self.period, self.duty = t_start, period, duty
@@ -208,9 +209,9 @@ class _NextEdge:
         else:
             view["on"] = 1.0
         t = view.t
-        if t is None or not all(isinstance(x, (int, float))
-                                for x in (self.t_start, self.period, self.duty)):
-            return
+        if t is None or not getattr(view, "starting", False) or not all(
+                isinstance(x, (int, float)) for x in (self.t_start, self.period, self.duty)):
+            return      # at an edge: the condition, with the run's values, found it
         t_next = self.t_start + (view["periods"] + self.duty * view["on"]) * self.period
         slack = 1e-9 * self.period
         if t_next > t + slack:      # at an edge: the next one lies ahead

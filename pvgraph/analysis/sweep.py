@@ -972,12 +972,21 @@ def run_identity(run) -> str:
     own = getattr(run, "sweep_identity", None)
     if callable(own):
         return str(own())
-    func, extra = run, ""
     if isinstance(run, functools.partial):
-        func = run.func
-        extra = f" with {run.args!r} {run.keywords!r}"
-    name = getattr(func, "__qualname__", type(func).__name__)
-    return f"{getattr(func, '__module__', '?')}.{name}{extra}"
+        args = [_identity_of(a) for a in run.args]
+        args += [f"{k}={_identity_of(v)}" for k, v in sorted(run.keywords.items())]
+        return f"{run_identity(run.func)} with ({', '.join(args)})"
+    name = getattr(run, "__qualname__", type(run).__name__)
+    return f"{getattr(run, '__module__', '?')}.{name}"
+
+
+def _identity_of(value) -> str:
+    """An argument of a partial in a run identity: what it says of itself, a function by its
+    name, else its repr without a memory address (the same object in another process)."""
+    if callable(getattr(value, "sweep_identity", None)) or callable(value):
+        return run_identity(value)
+    import re
+    return re.sub(r" at 0x[0-9a-fA-F]+", "", repr(value))
 
 
 def _recorded_identity(path):

@@ -201,3 +201,21 @@ def test_a_sine_source_bounds_the_steps_so_no_pulse_is_stepped_over():
     c.connect("bleed.b", "tank.port")
     sol = simulate(c, 1.0, rtol=1e-4, t_eval=np.linspace(0.9, 1.0, 2001))
     assert np.mean(sol["n.port.p"]) == pytest.approx(63.085e5, abs=0.2e5)
+
+
+@pytest.mark.parametrize("period", [0.2, 0.25])
+def test_a_pulse_period_changed_at_run_time_gives_that_train(period):
+    """A 0.1 s train compiled once, run with the period as a runtime parameter (a sweep of
+    the PWM period): the train of that period, 30 % on, so the integral over 1 s is 0.3 and
+    2 edges per period. The start-of-run catch-up ran at every edge with the compiled period
+    and undid them (0.25 s: one pulse, then nothing)."""
+    from pvgraph.components.signal import Integrator, Pulse
+    from pvgraph.simulate import simulate
+    c = Circuit("pwm")
+    c.add("pwm", Pulse(period=0.1, duty=0.3))
+    c.add("i", Integrator())
+    c.connect("pwm.y", "i.u")
+    s = c.compile()
+    sol = simulate(s, 1.0, params={"pwm.period": period}, t_eval=[1.0])
+    assert sol.final("i.y") == pytest.approx(0.3, abs=1e-9)
+    assert len(sol.events) == round(2 / period)      # the rise at 0 applied at start, at 1 s

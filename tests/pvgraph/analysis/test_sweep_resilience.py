@@ -257,3 +257,23 @@ def test_resume_with_another_run_says_the_record_mixes_two(tmp_path):
         sweep(cube, cases, backend="serial", out=tmp_path, resume=True)
     again = sweep(cube, cases, backend="serial", out=tmp_path, overwrite=True)
     assert [r.outputs["y"] for r in again] == [1.0, 8.0]
+
+
+class _Plain:
+    """An argument with the default repr (its memory address differs per process)."""
+
+    def __call__(self, x):
+        return {"y": x}
+
+
+def test_the_identity_of_a_partial_does_not_hold_memory_addresses():
+    """The command line sweeps functools.partial(_noted_case, CompiledRun(...)): the record's
+    identity held the CompiledRun's address, and every resume of the very same command
+    warned that another run had made the record."""
+    import functools
+
+    from pvgraph.analysis.sweep import run_identity
+    a = run_identity(functools.partial(square, _Plain()))
+    b = run_identity(functools.partial(square, _Plain()))
+    assert a == b and "0x" not in a
+    assert run_identity(functools.partial(square)) != run_identity(functools.partial(cube))
