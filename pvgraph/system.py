@@ -21,6 +21,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import difflib
+import functools
 import itertools
 import math
 import operator
@@ -62,6 +63,9 @@ class ModeView:
         self._owner = owner
         self.t = None
         self.starting = False   # True while an at-start action is applied at a run's start
+        #: ``parameter(field)``: the run's value of the owner's parameter ``field`` (set for
+        #: at-start actions), or None
+        self.parameter = None
 
     def __getitem__(self, name):
         return self._values[self._slot(name)]
@@ -354,14 +358,21 @@ class System:
                 view = self.mode_view(path)
                 view.t = float(t)       # the action's time: the run's start
                 view.starting = True
+                view.parameter = functools.partial(self._owner_parameter, path)
                 try:
                     spec.action(view)
                 finally:
                     view.t = None
                     view.starting = False
+                    view.parameter = None
                 applied.append(f"{path}.{spec.name}")
             self.mode_log.append((float(t), tuple(self.modes)))
         return applied
+
+    def _owner_parameter(self, owner: str, field: str):
+        """The value of the runtime parameter ``owner.field`` of this system, or None."""
+        info = self.parameters.get(f"{owner}.{field}")
+        return None if info is None else info.value
 
     def mode_view(self, owner: str) -> ModeView:
         """The modes of component ``owner`` as a mutable mapping."""

@@ -196,8 +196,7 @@ class Pulse(Component):
 class _NextEdge:
     """The action at an edge: at a rise on, at a fall off and one period more done. At the
     start of a run past ``t_start`` (the action applied there once) the train is moved on to
-    where it is at that time, with the values the circuit was built with (a run that both
-    starts late and changes the period as a runtime parameter starts from those)."""
+    where it is at that time, with the run's parameter values."""
 
     def __init__(self, t_start, period, duty):
         self.t_start, self.period, self.duty = t_start, period, duty
@@ -209,16 +208,22 @@ class _NextEdge:
         else:
             view["on"] = 1.0
         t = view.t
-        if t is None or not getattr(view, "starting", False) or not all(
-                isinstance(x, (int, float)) for x in (self.t_start, self.period, self.duty)):
+        if t is None or not getattr(view, "starting", False):
             return      # at an edge: the condition, with the run's values, found it
-        t_next = self.t_start + (view["periods"] + self.duty * view["on"]) * self.period
-        slack = 1e-9 * self.period
-        if t_next > t + slack:      # at an edge: the next one lies ahead
+        # the run's values of the parameters where the system gives them (a period changed
+        # at run time), else those the circuit was built with
+        ask = getattr(view, "parameter", None) or (lambda field: None)
+        t_start, period, duty = (ask(f) if isinstance(ask(f), (int, float)) else given
+                                 for f, given in (("t_start", self.t_start),
+                                                  ("period", self.period),
+                                                  ("duty", self.duty)))
+        t_next = t_start + (view["periods"] + duty * view["on"]) * period
+        slack = 1e-9 * period
+        if t_next > t + slack:      # the first edge lies ahead
             return
-        k = math.floor((t - self.t_start + slack) / self.period)
-        phase = t - self.t_start - k * self.period
-        if phase + slack < self.duty * self.period:     # on, the fall of period k ahead
+        k = math.floor((t - t_start + slack) / period)
+        phase = t - t_start - k * period
+        if phase + slack < duty * period:               # on, the fall of period k ahead
             view["periods"], view["on"] = float(k), 1.0
         else:                                           # off, the rise of period k + 1 ahead
             view["periods"], view["on"] = float(k + 1), 0.0

@@ -219,3 +219,18 @@ def test_a_pulse_period_changed_at_run_time_gives_that_train(period):
     sol = simulate(s, 1.0, params={"pwm.period": period}, t_eval=[1.0])
     assert sol.final("i.y") == pytest.approx(0.3, abs=1e-9)
     assert len(sol.events) == round(2 / period)      # the rise at 0 applied at start, at 1 s
+
+
+def test_a_late_start_with_a_period_changed_at_run_time_starts_where_that_train_is():
+    """Built with a 0.1 s period, run with 0.2 s from t = 0.25 s: at 0.25 s the 0.2 s train
+    is on (0.05 s into its 0.06 s pulse), and its mean over the run is the duty, 0.3."""
+    from pvgraph.components.signal import Integrator, Pulse
+    from pvgraph.simulate import simulate
+    c = Circuit("pwm")
+    c.add("pwm", Pulse(period=0.1, duty=0.3))
+    c.add("i", Integrator())
+    c.connect("pwm.y", "i.u")
+    sol = simulate(c.compile(), 1.25, t_start=0.25, params={"pwm.period": 0.2},
+                   t_eval=[0.25, 1.25])
+    assert sol["pwm.y"][0] == 1.0
+    assert (sol["i.y"][-1] - sol["i.y"][0]) == pytest.approx(0.3, abs=1e-9)
