@@ -65,6 +65,18 @@ class Solution:
         times = [t for t, _ in self._mode_log]
         rows = [m for _, m in self._mode_log]
         idx = np.searchsorted(times, self.t, side="right") - 1
+        # an event's time is in the output twice: before the action (the modes before it,
+        # the first row) and after it; the first of such a pair takes the modes it had
+        # (searchsorted gives both the modes set there); mode records at one time in a row
+        # collapse to the last of them
+        t = np.asarray(self.t)
+        first = np.flatnonzero(t[:-1] == t[1:]) if t.size > 1 else np.zeros(0, int)
+        for i in first:
+            k = idx[i]
+            if k > 0 and times[k] == t[i]:
+                while k > 0 and times[k] == t[i]:
+                    k -= 1
+                idx[i] = k
         return np.asarray([rows[max(i, 0)] for i in idx], dtype=float).reshape(len(self.t), -1)
 
     def _observed_values(self):

@@ -64,6 +64,12 @@ class DenseOutput:
         self._t_end.append(tn)
         self._pieces.append((tn, kused, tuple(psi[:kused + 1]), phi[:kused + 1].copy()))
 
+    def truncate(self, t):
+        """End the last piece at ``t`` (an event inside its step: past it, the pieces after
+        the event's action hold the solution)."""
+        if self._t_end and self._t_start[-1] <= t < self._t_end[-1]:
+            self._t_end[-1] = t
+
     @property
     def t_min(self):
         return self._t_start[0] if self._t_start else None

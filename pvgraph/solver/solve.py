@@ -588,6 +588,8 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             yps.append(integ.yp)
         if hit is not None:
             te, fired, ev, ye, ype = hit
+            if dense is not None:
+                dense.truncate(te)    # the step's interpolant holds up to the event only
             if t_eval is None:
                 ts.append(te)
                 ys.append(ye)

@@ -488,3 +488,43 @@ def test_a_run_stopped_by_a_terminal_event_says_so():
     assert sol.terminal.y[sol.system.index["n.port.p"]] == pytest.approx(50e5, rel=1e-6)
     full = simulate(c, 0.05)
     assert full.terminal is None and full.t_stop == 0.05 and "end" in full.message
+
+
+def test_an_observed_output_on_the_row_before_an_event_has_the_modes_before_it():
+    """A relay pump (on below 100 bar, off above 110 bar) with an observed delivery Q * on:
+    the event's time is in the output twice, and the row before the action showed the
+    delivery after it (0 where the pump still ran), a ramp into the event in plots."""
+    from pvgraph.components import FlowSource, VolumeNode
+
+    class RelayParams(Params):
+        Q: float = Field(..., description="Flow when on [m^3/s]")
+        p_lo: float = Field(..., description="Switch-on pressure [Pa]")
+        p_hi: float = Field(..., description="Switch-off pressure [Pa]")
+
+    def set_on(value):
+        def act(modes):
+            modes["on"] = value
+        return act
+
+    class Relay(Component):
+        Params = RelayParams
+        ports = {"port": Hydraulic("delivery")}
+        modes = {"on": 1.0}
+
+        def equations(self, v, p):
+            v.event("off", v.port.p - p.p_hi, direction=1, action=set_on(0.0))
+            v.event("on", v.port.p - p.p_lo, direction=-1, action=set_on(1.0))
+            v.observe("Q_del", p.Q * v.mode("on"), "m^3/s", "delivered flow")
+            return [v.port.q + p.Q * v.mode("on")]
+    Q = 10 / 60e3
+    c = Circuit("relay")
+    c.add("pump", Relay(Q=Q, p_lo=100e5, p_hi=110e5))
+    c.add("node", VolumeNode(V=1e-3, beta=7e8, p0=105e5))
+    c.add("draw", FlowSource(Q=-4 / 60e3))
+    c.connect("pump.port", "node.port", "draw.port")
+    sol = simulate(c, 0.05)
+    te = sol.events[0].t
+    assert te == pytest.approx(1e-3 * 5e5 / (7e8 * 6 / 60e3), rel=1e-6)
+    rows = np.flatnonzero(sol.t == te)
+    assert list(sol["pump.Q_del"][rows]) == pytest.approx([Q, 0.0])
+    assert list(-sol["pump.port.q"][rows]) == pytest.approx([Q, 0.0])

@@ -1,5 +1,7 @@
 """Events: location, direction filtering, terminal stops and mode-switching actions."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -236,3 +238,25 @@ def test_an_event_function_that_reaches_zero_and_stays_there_fires_once():
                     events=[flat], max_steps=20000)
     assert res.success and len(fired) == 1 and 0.5 <= fired[0] <= 1.0
     assert res.y[-1, 0] == pytest.approx(1.0, rel=1e-9)
+
+
+def test_dense_output_is_on_each_side_of_an_event_its_own_branch():
+    """A ball dropped from 1 m bounces (e = 0.8) at t1 = sqrt(2/g): dense output just after
+    the bounce gave the pre-bounce branch (the detecting step's interpolant ran past the
+    event, x = -4.4e-6 for +3.5e-6) up to the end of that step."""
+    g, e = 9.81, 0.8
+
+    def bounce(t, y, yp):
+        return np.array([y[0], -e * y[1]]), np.array([-e * y[1], -g])
+    floor = Event(lambda t, y, yp: y[0], -1, False, bounce, "floor")
+    res = solve_dae(lambda t, y, yp: np.array([yp[0] - y[1], yp[1] + g]), (0.0, 0.8),
+                    [1.0, 0.0], [0.0, -g], rtol=1e-10, atol=1e-12, events=[floor],
+                    dense_output=True)
+    t1 = math.sqrt(2.0 / g)
+    v1 = e * g * t1
+    for d in (1e-6, 1e-3, 1e-2):
+        x, v = res.sol(t1 + d)
+        assert x == pytest.approx(v1 * d - g * d * d / 2, rel=1e-6)
+        assert v == pytest.approx(v1 - g * d, rel=1e-6)
+        x, v = res.sol(t1 - d)
+        assert x == pytest.approx(g * t1 * d - g * d * d / 2, rel=1e-6)
