@@ -129,6 +129,52 @@ def _stall(stalled, tn, t_end):
     return stalled
 
 
+class _PiecewiseHermite:
+    """Cubic Hermite interpolation of the output rows, split at repeated times (an event's
+    row before its action and the one after): each side of an event interpolates its own
+    branch, the value at the event time is the one after the action."""
+
+    def __init__(self, t, y, yp):
+        from scipy.interpolate import CubicHermiteSpline
+        cuts = np.flatnonzero(np.diff(t) <= 0.0) + 1      # the first row after each repeat
+        bounds = [0, *cuts.tolist(), len(t)]
+        self._pieces = []
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            if b - a >= 2:
+                self._pieces.append((t[a], CubicHermiteSpline(t[a:b], y[a:b], yp[a:b], axis=0)))
+            else:       # a lone row (an event at the end): constant there
+                row = y[a]
+                self._pieces.append((t[a], lambda tq, row=row: np.broadcast_to(
+                    row, np.shape(tq) + row.shape).copy()))
+        self._starts = np.array([p[0] for p in self._pieces])
+
+    def _evaluate(self, tq, nu):
+        tq_arr = np.asarray(tq, dtype=float)
+        k = np.clip(np.searchsorted(self._starts, tq_arr, side="right") - 1, 0,
+                    len(self._pieces) - 1)
+
+        def at(piece, tv):
+            f = piece[1]
+            if nu == 0:
+                return np.asarray(f(tv))
+            if hasattr(f, "derivative"):
+                return np.asarray(f(tv, nu))
+            return np.zeros_like(np.asarray(f(tv)))     # a lone row: constant
+        if tq_arr.ndim == 0:
+            return at(self._pieces[int(k)], tq_arr)
+        out = np.empty((tq_arr.size,) + np.shape(at(self._pieces[0], tq_arr.flat[0])))
+        for i, (tv, kv) in enumerate(zip(tq_arr.ravel(), np.atleast_1d(k).ravel())):
+            out[i] = at(self._pieces[int(kv)], tv)
+        return out
+
+    def __call__(self, tq):
+        return self._evaluate(tq, 0)
+
+    def derivative(self, tq):
+        """Interpolated y'(t), as :class:`~pvgraph.solver.result.DenseOutput` gives it."""
+        return self._evaluate(tq, 1)
+
+
 def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None,
                        jac=None, jac_sparsity=None, events=None, t_eval=None, max_step=None,
                        first_step=None, calc_initial="algebraic", max_order=5,
@@ -395,10 +441,7 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
     yp_out = np.vstack(yps) if yps else np.empty((0, n))
     sol = None
     if dense_output and t_out.size > 1:
-        from scipy.interpolate import CubicHermiteSpline
-        # later rows win at repeated times (the state after an event reset)
-        last = np.r_[np.diff(t_out) > 0.0, True]
-        sol = CubicHermiteSpline(t_out[last], y_out[last], yp_out[last], axis=0)
+        sol = _PiecewiseHermite(t_out, y_out, yp_out)
     stats = {"nsteps": nsteps, "nre": res_cb.calls, "nje": nje + jacobian.nje,
              "nlu": None, "netf": None, "ncfn": None, "nni": None, "nroot": None}
     return DAEResult(t=t_out, y=y_out, yp=yp_out, events=records,

@@ -240,16 +240,22 @@ def test_an_event_function_that_reaches_zero_and_stays_there_fires_once():
     assert res.y[-1, 0] == pytest.approx(1.0, rel=1e-9)
 
 
-def test_dense_output_is_on_each_side_of_an_event_its_own_branch():
+@pytest.mark.parametrize("backend", ["pvgraph", "ida"])
+def test_dense_output_is_on_each_side_of_an_event_its_own_branch(backend):
     """A ball dropped from 1 m bounces (e = 0.8) at t1 = sqrt(2/g): dense output just after
     the bounce gave the pre-bounce branch (the detecting step's interpolant ran past the
-    event, x = -4.4e-6 for +3.5e-6) up to the end of that step."""
+    event, x = -4.4e-6 for +3.5e-6) up to the end of that step; IDA's spline over the output
+    rows gave the post-bounce branch just before it."""
     g, e = 9.81, 0.8
 
     def bounce(t, y, yp):
         return np.array([y[0], -e * y[1]]), np.array([-e * y[1], -g])
     floor = Event(lambda t, y, yp: y[0], -1, False, bounce, "floor")
-    res = solve_dae(lambda t, y, yp: np.array([yp[0] - y[1], yp[1] + g]), (0.0, 0.8),
+    solve = solve_dae
+    if backend == "ida":
+        pytest.importorskip("sksundae")
+        from pvgraph.solver import solve_dae_sundials as solve
+    res = solve(lambda t, y, yp: np.array([yp[0] - y[1], yp[1] + g]), (0.0, 0.8),
                     [1.0, 0.0], [0.0, -g], rtol=1e-10, atol=1e-12, events=[floor],
                     dense_output=True)
     t1 = math.sqrt(2.0 / g)
