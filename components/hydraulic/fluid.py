@@ -24,7 +24,7 @@ term that grows without bound as ``p_abs -> p_vap`` and is exactly zero above
 there)::
 
     V / beta_c(p) = V / beta_e(p) + V / beta * max(dp_cav / s - 1/10, 0)^3
-    s = max(p_abs - p_vap, 1e-2 dp_cav)                (continuous, its slope kinks there)
+    s = max(p_abs - p_vap, 1e-2 dp_cav)                (smoothly)
 
 Drawing a volume ``dV`` out of a closed chamber of volume ``V`` lowers its pressure only to
 about ``p_vap + dp_cav * sqrt(V * dp_cav / (2 * beta * dV))`` (about 40 Pa for 1 % of
@@ -35,10 +35,10 @@ pascals) stands for a fraction of a cm^3 of oil in a cavitating chamber, so that
 does not depend on its tolerance. The cavity takes the fraction ``void_fraction(p)`` of a
 chamber's volume (the integral of the compliance, so ``d(void)/dp = -compliance``) and the oil
 the rest: a chamber whose wall moves while it cavitates (a rod running ahead of its supply)
-keeps its oil balance, as the run converges, to 0.001 cm^3 of 333 (``chamber_continuity``).
+keeps its oil balance, as the run converges, to 0.0003 cm^3 of 333 (``chamber_continuity``).
 The cavity is not a state of its own: it hangs on the pressure, which the solver resolves to
 its tolerance, and the oil it stands for follows the pressure's errors: at the default rtol
-1e-6, 0.3 cm^3 of 333 in the cylinder above, but about 100 cm^3 over 3.5 s of a
+1e-6, 0.45 cm^3 of 333 in the cylinder above, but about 50 cm^3 over 3.5 s of a
 counterbalance valve's limit cycle that cavitates a third of the time (5 cm^3 at 1e-7);
 where a chamber cavitates again and again, tighten rtol.
 
@@ -188,33 +188,40 @@ def void_fraction(p, fp: FluidCompliance):
 def _cavitation(p, fp: FluidCompliance):
     """``(compliance, void fraction)`` of the cavitation term at gauge pressure ``p``.
 
-    With ``a = dp_cav``, ``b = 1/CAVITATION_ONSET`` and ``s`` the absolute pressure above
-    ``p_vap`` (at least the floor ``CAVITATION_FLOOR * a``): the compliance is
-    ``(a/s - b)^3 / beta``, the void fraction ``(P(a/b) - P(s) + (a/floor - b)^3 (s - depth))
-    / beta`` with ``P(u) = -a^3/(2 u^2) + 3 a^2 b / u + 3 a b^2 ln u - b^3 u`` (``P' = (a/u -
-    b)^3``); both vanish above ``a/b`` (10 dp_cav), continuously.
+    With ``a = dp_cav``, ``b = 1/CAVITATION_ONSET`` and ``s = smooth_max(depth, f, f)`` the
+    absolute pressure above ``p_vap`` (``depth``) levelled off at the floor ``f =
+    CAVITATION_FLOOR * a``: the compliance is ``(a/s - b)^3 / beta``, the void fraction its
+    integral from ``p`` up to the onset ``a/b`` (10 dp_cav, where both vanish, continuously).
+    Integrated over ``s``, ``d depth = (1 + f^2 / (4 (s - f)^2)) ds``; with ``P(u) = -a^3/(2
+    u^2) + 3 a^2 b/u + 3 a b^2 ln u - b^3 u`` (``P' = (a/u - b)^3``) and ``Q`` the integral of
+    ``f^2 (a/u - b)^3 / (4 (u - f)^2)``, the void fraction is ``(P(s_S) - P(s) + Q(s_S) -
+    Q(s)) / beta`` (``s_S``: s at the onset), exactly.
     """
     a = fp.dp_cav
     b = 1.0 / CAVITATION_ONSET
-    floor = CAVITATION_FLOOR * a
+    f = CAVITATION_FLOOR * a
     depth = p + fp.p_atm - fp.p_vap
     expr = _is_expr(depth)
     log = E.log if expr else math.log
-    below = depth < floor
-    if expr:
-        s = E.where(below, floor, depth)
-        under = E.where(below, floor - depth, 0.0)
-    else:
-        s, under = (floor, floor - depth) if below else (depth, 0.0)
+    s = smooth_max(depth, f, f)
+    onset = a / b
+    s_on = 0.5 * (onset + f + math.hypot(onset - f, f)) if not _is_expr(a) else \
+        smooth_max(onset, f, f)
 
     def P(u):
         return -a * a * a / (2.0 * u * u) + 3.0 * a * a * b / u + 3.0 * a * b * b * log(u) \
             - b * b * b * u
+
+    def Q(u):
+        k = a - b * f
+        return f * f * (6.0 * a * u * u * k * k * (f - u) * (log(u) - log(u - f))
+                        + f * (-a * a * a * f * f - 3.0 * a * a * f * u * (a - 2.0 * b * f)
+                               + 2.0 * u * u * (3.0 * a * k * k - b * b * b * f * f * f))) \
+            / (8.0 * f ** 4 * u * u * (f - u))
     r = a / s - b
-    r_floor = a / floor - b
     compliance_ = r * r * r / fp.beta
-    void = (P(a / b) - P(s) + r_floor * r_floor * r_floor * under) / fp.beta
-    near = depth < CAVITATION_ONSET * a
+    void = (P(s_on) - P(s) + Q(s_on) - Q(s)) / fp.beta
+    near = depth < onset
     if expr:
         return E.where(near, compliance_, 0.0), E.where(near, void, 0.0)
     return (compliance_, void) if near else (0.0, 0.0)

@@ -636,7 +636,7 @@ def _pump_into_a_free_rod(m="100 kg", b=2000.0):
 def test_a_cavity_that_collapses_again_and_again_keeps_its_oil(rtol, within):
     """On 100 kg with little damping (zeta 0.009) chamber A's cavity collapses in impacts
     again and again; the rod cannot run ahead of the oil fed and ends at (Q t - oil
-    compressed) / A_A = 169.76 mm at 1 s where the run converges (rtol 1e-8: 0.0009 cm^3 of
+    compressed) / A_A = 169.76 mm at 1 s where the run converges (rtol 1e-9: 0.0003 cm^3 of
     333 unaccounted), closer the tighter the tolerance (the cavity hangs on the pressure's
     error). With the cavity a compliance of the whole chamber, at 2e-5 the rod reached its
     300 mm stop (370 cm^3 of oil made: a corrector root that kept the cavity open over a
@@ -756,11 +756,10 @@ def test_a_valve_piped_straight_into_a_counterbalance_valve_runs():
 
 def test_a_run_past_a_rescue_says_it_may_have_left_the_circuits_solution():
     """The valve piped into the counterbalance valve, started from rest (no start value):
-    rescues at 2 ms. Past them the run can follow another solution of the node's equation (at
-    the default rtol the load stays near 0.398 m where the circuit lowers it to 0.318 m), so
-    the PlausibilityWarning says to check the run, not that values near those times are
-    approximate; with the 1 cm^3 on that node it advises, the circuit lowers its load as
-    SUNDIALS IDA does, to 1 mm."""
+    rescues at 2 ms, and a PlausibilityWarning that the run from there may follow another
+    solution (with the cavitation's first hard floor it kept its load up at 0.398 m); here it
+    lowers the load as the circuit with the advised 1 cm^3 on that node does, to 3 mm (this
+    limit cycle's own spread at rtol 1e-6: 2.6 mm from its converged 319.7 mm)."""
     from pvgraph.errors import PlausibilityWarning
     c, _ = _valve_into_counterbalance()
     with pytest.warns(PlausibilityWarning, match=r"(?s)corrector failed down to a vanishing "
@@ -769,8 +768,7 @@ def test_a_run_past_a_rescue_says_it_may_have_left_the_circuits_solution():
                                                  r"VolumeNode on that node"):
         sol = simulate(c, 1.5, t_eval=[1.5])
     assert sol.stats["nrescue"] >= 1
-    pytest.importorskip("sksundae")
-    well_posed = _valve_into_counterbalance("1 cm^3")[0]
-    ours, ida = simulate(well_posed, 1.5), simulate(well_posed, 1.5, solver="ida")
-    assert ours.final("cyl.flange.x") == pytest.approx(ida.final("cyl.flange.x"), abs=1e-3)
-    assert ours.final("cyl.flange.x") < 0.33                  # lowered from 0.4 m
+    well_posed = simulate(_valve_into_counterbalance("1 cm^3")[0], 1.5)
+    assert sol.final("cyl.flange.x") == pytest.approx(well_posed.final("cyl.flange.x"),
+                                                      abs=3e-3)
+    assert sol.final("cyl.flange.x") < 0.33                  # lowered from 0.4 m
