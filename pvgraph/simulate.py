@@ -432,11 +432,11 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     sol = Solution(system, res.t, res.y, res.yp, events=res.events, stats=res.stats,
                    mode_log=getattr(res, "mode_log", None) or system.mode_log, solver=solver)
     sol.message = res.message
-    terminal = [ev for ev in res.events if "terminal event" in (res.message or "") and
-                f"({ev.name!r})" in res.message]
-    if terminal:
-        sol.terminal = terminal[-1]
-        sol.t_stop = float(terminal[-1].t)
+    # a terminal event ends the run: where the last event recorded is one, it stopped there
+    stopping = {f"{path}.{spec.name}" for path, spec in system.event_specs if spec.terminal}
+    if res.events and res.events[-1].name in stopping:
+        sol.terminal = res.events[-1]
+        sol.t_stop = float(sol.terminal.t)
     else:
         sol.t_stop = float(t_end)
     if switches:

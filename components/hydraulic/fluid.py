@@ -205,8 +205,7 @@ def _cavitation(p, fp: FluidCompliance):
     log = E.log if expr else math.log
     s = smooth_max(depth, f, f)
     onset = a / b
-    s_on = 0.5 * (onset + f + math.hypot(onset - f, f)) if not _is_expr(a) else \
-        smooth_max(onset, f, f)
+    s_on = smooth_max(onset, f, f)
 
     def P(u):
         return -a * a * a / (2.0 * u * u) + 3.0 * a * a * b / u + 3.0 * a * b * b * log(u) \

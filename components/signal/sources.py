@@ -213,10 +213,12 @@ class _NextEdge:
         # the run's values of the parameters where the system gives them (a period changed
         # at run time), else those the circuit was built with
         ask = getattr(view, "parameter", None) or (lambda field: None)
-        t_start, period, duty = (ask(f) if isinstance(ask(f), (int, float)) else given
-                                 for f, given in (("t_start", self.t_start),
-                                                  ("period", self.period),
-                                                  ("duty", self.duty)))
+
+        def value(field, given):
+            got = ask(field)
+            return got if isinstance(got, (int, float)) else given
+        t_start, period, duty = (value("t_start", self.t_start), value("period", self.period),
+                                 value("duty", self.duty))
         t_next = t_start + (view["periods"] + duty * view["on"]) * period
         slack = 1e-9 * period
         if t_next > t + slack:      # the first edge lies ahead

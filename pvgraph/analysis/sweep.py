@@ -87,6 +87,7 @@ import math
 import numbers
 import os
 import pickle
+import re
 import signal
 import threading
 import time
@@ -985,7 +986,6 @@ def _identity_of(value) -> str:
     name, else its repr without a memory address (the same object in another process)."""
     if callable(getattr(value, "sweep_identity", None)) or callable(value):
         return run_identity(value)
-    import re
     return re.sub(r" at 0x[0-9a-fA-F]+", "", repr(value))
 
 
