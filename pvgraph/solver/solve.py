@@ -8,6 +8,7 @@ consistent initialisation and a restart at order 1), dense output and statistics
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
@@ -141,8 +142,12 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
     events : list of Event or scipy-style callables, optional
         Zero crossings to locate; see ``Event``.
     t_eval : array_like, optional
-        Sorted output times inside t_span, interpolated from the BDF history. By default
-        every internal step (and both sides of every event with an action) is output.
+        Sorted output times inside t_span, interpolated from the BDF history. With
+        ``suppress_alg`` the algebraic variables are not error-controlled, so at these
+        times (and where events are located) they are solved from the equations at the
+        interpolated states rather than interpolated (``stats["nlu_rows"]``: the matrices
+        that took). By default every internal step (and both sides of every event with an
+        action) is output.
     max_step : float, optional
         Largest step size.
     first_step : float, optional
@@ -274,6 +279,90 @@ def _lu_kind(linear_solver, residual, n):
                                 f"(pvgraph/solver/clu.c): {clu.load_error()}")
         return "c"
     return "c" if _c_system_of(residual) is not None and clu.available() else "lapack"
+
+
+#: an output row stays as interpolated where the first Newton correction of its algebraic
+#: variables (weighted RMS, in tolerance units) is below this; it is solved to it otherwise
+CONSISTENT_TOL = 1e-2
+CONSISTENT_ITERS = 6
+
+
+def _consistent_interpolant(integ, fun, jacobian, lu, alg_mask, rtol, atol, counter):
+    """The step's interpolant with the algebraic variables solved at each time asked.
+
+    With the algebraic variables out of the error test (``suppress_alg``) the BDF interpolant
+    of a step is error-controlled for the states only: across a kink of an algebraic variable
+    (a saturation, a valve closing) the interpolated value can be far from the equations at
+    the interpolated states. Output rows and the functions of events are taken at
+    ``(y, y')`` with the states interpolated and the algebraic variables, with the states'
+    rates, solved from ``F(t, y, y') = 0``, as IDA's consistent initial conditions are found
+    (``IDA_YA_YDP_INIT``): Newton with the matrix of columns ``dF/dy_a`` (algebraic) and
+    ``dF/dy'_d`` (states), factorised in ``lu`` and kept while it contracts fast (made again
+    at the row where it does not). A row whose first correction is small (most rows: one
+    residual and one solve) stays as interpolated; one whose iteration does not contract on a
+    fresh matrix stays as interpolated too. What is decided depends on the rows only, so the
+    Python and C steps (rows made one step at a time or in the loop in C) agree bit for bit.
+    ``counter`` counts the residual evaluations (``"nre"``) and the matrices (``"nlu"``).
+    """
+    alg = np.flatnonzero(alg_mask)
+    states = np.flatnonzero(~alg_mask)
+    cy = alg_mask.astype(float)
+    cyp = 1.0 - cy
+    inv_n = 1.0 / max(alg_mask.size, 1)
+    made = {"ok": None}     # None: no matrix yet; True: factorised; False: singular
+
+    def size(d, ewt):
+        """The algebraic part of a correction, weighted RMS in tolerance units."""
+        v = d[alg] * ewt[alg]
+        return math.sqrt(float(np.dot(v, v)) * inv_n)
+
+    def refresh(t, y, yp, r):
+        m = jacobian.mixed_matrix(t, y, yp, r, cy, cyp, np.abs(y) + atol / rtol)
+        made["ok"] = lu.factor(m) == 0
+        counter["nlu"] += 1
+        return made["ok"]
+
+    def solve(t, y, yp):
+        ewt = 1.0 / (rtol * np.abs(y) + atol)
+        r = fun(t, y, yp)
+        counter["nre"] += 1
+        if not np.all(np.isfinite(r)):
+            return y, yp
+        fresh = False
+        if made["ok"] is None:
+            fresh = refresh(t, y, yp, r)
+        if not made["ok"]:
+            return y, yp
+        y_a, yp_s = y[alg].copy(), yp[states].copy()
+        last = math.inf
+        for k in range(CONSISTENT_ITERS):
+            d = lu.solve(r)
+            got = size(d, ewt)
+            if k == 0 and got <= CONSISTENT_TOL:
+                return y, yp
+            if not got < (0.9 if fresh else 0.25) * last:
+                if fresh or k == 0 or not refresh(t, y, yp, r):
+                    break
+                fresh, last = True, math.inf
+                continue
+            y[alg] -= d[alg]
+            yp[states] -= d[states]
+            if got <= CONSISTENT_TOL:
+                return y, yp
+            last = got
+            r = fun(t, y, yp)
+            counter["nre"] += 1
+            if not np.all(np.isfinite(r)):
+                break
+        y[alg], yp[states] = y_a, yp_s
+        return y, yp
+
+    def interpolate(t):
+        y, yp = integ.interpolate(t)
+        return solve(t, np.array(y, dtype=float), np.array(yp, dtype=float))
+
+    interpolate.solve = solve
+    return interpolate
 
 
 def _first_hit(found, event_list, interpolate, records, t_old, t_new):
@@ -465,6 +554,10 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
                             max_step, var_names, no_growth_after_failure, nonnegative,
                             newton_iterate_retry)
     integ.reinit(t0, y, yp, t_end, first_step)
+    solved = {"nre": 0, "nlu": 0}
+    interpolate = integ.interpolate if error_mask is None else \
+        _consistent_interpolant(integ, fun, jacobian, LUSolver(lu_kind, pattern=lu_pattern),
+                                alg_mask, rtol, atol, solved)
 
     ts, ys, yps = [], [], []
     i_eval = 0
@@ -519,8 +612,15 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             else:
                 i_eval = run.i_eval
                 ts.extend(t_eval[i_from:i_eval])
-                ys.extend(run.y_rows[i_from:i_eval])
-                yps.extend(run.yp_rows[i_from:i_eval])
+                if not hasattr(interpolate, "solve"):
+                    ys.extend(run.y_rows[i_from:i_eval])
+                    yps.extend(run.yp_rows[i_from:i_eval])
+                else:
+                    for k in range(i_from, i_eval):
+                        yv, ypv = interpolate.solve(t_eval[k], run.y_rows[k].copy(),
+                                                    run.yp_rows[k].copy())
+                        ys.append(yv)
+                        yps.append(ypv)
             if status == ADV_END:
                 hit = None
                 break
@@ -541,7 +641,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
                 if t_eval is not None:
                     while i_eval < t_eval.size and t_eval[i_eval] <= t_new:
                         yv, ypv = ((y_new, yp_new) if t_eval[i_eval] == t_new
-                                   else integ.interpolate(t_eval[i_eval]))
+                                   else interpolate(t_eval[i_eval]))
                         ts.append(t_eval[i_eval])
                         ys.append(np.array(yv, dtype=float))
                         yps.append(np.array(ypv, dtype=float))
@@ -567,8 +667,8 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         hit = None
         if tracker is not None and not (c_events and integ.events_quiet()):
             g_new = tracker.evaluate(tn, integ.yy, integ.yp)
-            hit = _first_hit(tracker.crossings(t_old, tn, g_new, integ.interpolate),
-                             event_list, integ.interpolate, records, t_old, tn)
+            hit = _first_hit(tracker.crossings(t_old, tn, g_new, interpolate),
+                             event_list, interpolate, records, t_old, tn)
             tracker.g = g_new
         if t_eval is not None:
             # an output time equal to the time of an action is reported after the action
@@ -577,7 +677,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             before_action = hit is not None and not hit[2].terminal
             while i_eval < t_eval.size and (t_eval[i_eval] < t_upto or (
                     t_eval[i_eval] == t_upto and not before_action)):
-                yv, ypv = integ.interpolate(t_eval[i_eval])
+                yv, ypv = interpolate(t_eval[i_eval])
                 ts.append(t_eval[i_eval])
                 ys.append(yv)
                 yps.append(ypv)
@@ -629,7 +729,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
 
     if t_eval is not None and (hit is None or not hit[2].terminal):
         while i_eval < t_eval.size:
-            yv, ypv = (integ.interpolate(t_eval[i_eval]) if end_state is None
+            yv, ypv = (interpolate(t_eval[i_eval]) if end_state is None
                        else (end_state[0].copy(), end_state[1].copy()))
             ts.append(t_eval[i_eval])
             ys.append(yv)
@@ -637,14 +737,14 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             i_eval += 1
     elif t_eval is None and hit is None and end_state is None:
         ts[-1] = t_end
-        ys[-1], yps[-1] = integ.interpolate(t_end)
+        ys[-1], yps[-1] = interpolate(t_end)
     if tracker is not None and hit is None and end_state is None and integ.tn < t_end:
         # the last step ends within rounding of t_end: a zero exactly at t_end (a step at
         # t_step = t_end) lies beyond it, in (tn, t_end]
-        ye, ype = integ.interpolate(t_end)
+        ye, ype = interpolate(t_end)
         g_end = tracker.evaluate(t_end, ye, ype)
-        end_hit = _first_hit(tracker.crossings(integ.tn, t_end, g_end, integ.interpolate),
-                             event_list, integ.interpolate, records, integ.tn, t_end)
+        end_hit = _first_hit(tracker.crossings(integ.tn, t_end, g_end, interpolate),
+                             event_list, interpolate, records, integ.tn, t_end)
         if end_hit is not None and end_hit[2].terminal:
             message = (f"A terminal event ({end_hit[2].name!r}) occurred at t = "
                        f"{end_hit[0]:.9g}.")
@@ -661,7 +761,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
                         break
                     ys[k], yps[k] = ye.copy(), ype.copy()
 
-    nre = counted.calls + integ.nre + jacobian.nfev
+    nre = counted.calls + integ.nre + jacobian.nfev + solved["nre"]
     stats = {
         "nsteps": integ.nst,
         "nre": nre,
@@ -673,6 +773,10 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         "nni": integ.nni,
         "nroot": tracker.nroot if tracker is not None else 0,
     }
+    if solved["nlu"]:
+        # the output rows' and event functions' algebraic variables solved (see
+        # _consistent_interpolant): the matrices made for them
+        stats["nlu_rows"] = solved["nlu"]
     if rescue["count"]:
         stats["nrescue"] = rescue["count"]
         t_first, names = rescue["first"]
