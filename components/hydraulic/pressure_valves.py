@@ -38,7 +38,9 @@ open at ``dp_main + dp_main_open``. With ``p_c = P.p - dp_o`` the pilot chamber 
 relief at full flow is a few bar, against tens of bar for a direct valve of the same size.
 
 ``PressureReducingValve`` (2-way, normally open): the area from P to A closes as the outlet
-pressure rises to ``p_set``: ``A = A_leak + A_max * (1 - ramp(A.p; p_set - dp_open, dp_open))``.
+pressure rises to ``p_set``: ``A = A_leak + A_max * (1 - ramp(A.p; p_set - dp_open, dp_open))``;
+above the setting the outlet drains to tank through ``A_drain * ramp(A.p; p_set, dp_open)``, so
+a dead-ended outlet holds at the setting.
 
 ``SequenceValve`` (externally drained to tank at gauge 0): P to A opens when the inlet pressure
 reaches ``p_set``: ``A = A_leak + A_max * ramp(P.p; p_set, dp_open)``.
@@ -63,7 +65,7 @@ from pvgraph.laws import orifice_flow
 
 from ..mechanical.laws import onset_indicator, onset_penetration
 from .check_valve import smoothstep_ramp
-from .fluid import rho_field
+from .fluid import P_ATM, rho_field
 
 __all__ = ["ReliefValve", "DynamicReliefValve", "PilotReliefValve", "PressureReducingValve",
            "SequenceValve", "CounterbalanceValve", "relief_opening"]
@@ -133,7 +135,13 @@ class ReliefValve(Component):
         above it, and passing ``Q_rated`` fully open at ``p_crack + dp_rated`` (``"200 bar"``,
         ``"60 L/min"``, ``"15 bar"``; quantities or SI numbers). The spool is chosen to fit:
         no flow force, a 1 mm stroke on 20 mm^2 (``params`` may set ``Cd``, ``rho``,
-        ``A_leak``, ``dp_t``)."""
+        ``A_leak``, ``dp_t``).
+
+        ``Q_rated`` is where the stroke ends: beyond it the valve is a fixed orifice and the
+        pressure rises with the square of the flow (a "60 L/min, 150 + 15 bar" valve holds
+        225 bar at 70 L/min, 371 bar at 90 L/min). Give the largest flow the valve will
+        pass, not a catalogue's nominal flow, where the characteristic must stay flat; a
+        data sheet's p-Q curve read at two flows gives ``dp_rated`` at that flow."""
         from pvgraph.units import number_in
         p_crack = number_in(p_crack, "Pa", "ReliefValve.from_setting p_crack")
         Q = number_in(Q_rated, "m^3/s", "ReliefValve.from_setting Q_rated")
@@ -248,14 +256,33 @@ class SettingParams(_RestrictionParams):
     A_max: float = Field(..., gt=0.0, le=1e-2, description="Fully open area [m^2]")
 
 
+class ReducingValveParams(SettingParams):
+    A_drain: float = Field(1e-9, ge=0.0, le=1e-4,
+                           description="Area from the outlet to the drain (the spring "
+                                       "chamber's, to tank) once the outlet is above the "
+                                       "setting; 0: none [m^2]")
+    p_drain: float = Field(P_ATM, ge=0.0, le=1e7,
+                           description="Pressure of the drain (tank, absolute) [Pa]")
+
+
 class PressureReducingValve(Component):
     """2-way pressure-reducing valve P -> A, normally open, closing as A.p reaches ``p_set``.
 
     Area ``A_leak + A_max (1 - ramp(A.p; p_set - dp_open, dp_open))``: with the supply above
-    the setting the outlet holds between ``p_set - dp_open`` and ``p_set``.
+    the setting and the outlet flowing, the outlet holds between ``p_set - dp_open`` and
+    ``p_set``. Above the setting the outlet drains to ``p_drain`` through
+    ``A_drain ramp(A.p; p_set, dp_open)`` (the spool's leakage into its drained spring
+    chamber), which takes the closed valve's leak ``A_leak``: a dead-ended outlet (a clamp at
+    stall) holds just above the setting instead of creeping up to the supply: where the
+    drain takes the leak, ``A_drain ramp sqrt(A.p - p_drain) = A_leak sqrt(P.p - A.p)``. With
+    the defaults (``A_drain = 100 A_leak``) that is within ``0.1 dp_open`` of the setting
+    while ``P.p - p_set < 7.8 (p_set - p_drain)`` (a 50 bar setting: supplies up to 430 bar;
+    200 bar gives 50.39 bar) and within ``dp_open`` up to ``10^4 (p_set - p_drain)``. The
+    drain flow (observed ``q_drain``) leaves the circuit; it is of the order of the leak
+    (a few mL/min).
     """
 
-    Params = SettingParams
+    Params = ReducingValveParams
     ports = {"P": Hydraulic("inlet (supply)"), "A": Hydraulic("reduced outlet")}
 
     def equations(self, v, p):
@@ -263,7 +290,10 @@ class PressureReducingValve(Component):
         A = v.observe("A_open", p.A_leak + p.A_max * (1.0 - smoothstep_ramp(
             v.A.p, p.p_set - p.dp_open, p.dp_open)), "m^2", "opening area")
         q = v.observe("q", orifice_flow(p.Cd, A, dp, p.rho, p.dp_t), "m^3/s", "flow P -> A")
-        return [v.P.q - q, v.P.q + v.A.q]
+        a_drain = p.A_drain * smoothstep_ramp(v.A.p, p.p_set, p.dp_open)
+        q_drain = v.observe("q_drain", orifice_flow(p.Cd, a_drain, v.A.p - p.p_drain, p.rho,
+                                                    p.dp_t), "m^3/s", "flow A -> drain")
+        return [v.P.q - q, v.P.q + v.A.q - q_drain]
 
 
 class SequenceValve(Component):

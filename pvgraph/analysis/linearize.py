@@ -962,7 +962,24 @@ def linearize_circuit(build: Callable[[dict], object], u0: Mapping[str, float],
     unused = [nm for nm in u0 if not np.any(cols[nm]) and not np.any(direct[nm])
               and not held[nm]]
     if unused:
-        warnings.warn(f"linearize_circuit: input(s) {unused} change nothing in the circuit "
-                      f"(dF/du = 0): does build(u) read u[{unused[0]!r}]? The model's column "
-                      f"for it is zero", UserWarning, stacklevel=2)
+        # an input the build reads (a parameter of the compiled system moves with it) but
+        # whose effect vanishes at this operating point (a spring's rate at zero deflection)
+        # is not a mistake of the build's: say which it is
+        base = system.parameter_values
+        read, ignored = [], []
+        for nm in unused:
+            u = dict(u0)
+            u[nm] = u0[nm] + (du.get(nm) or eps_rel * (abs(u0[nm]) or 1.0))
+            moved = _as_system(build(u)).parameter_values
+            (read if moved != base else ignored).append(nm)
+        if read:
+            warnings.warn(f"linearize_circuit: input(s) {read} have no first-order effect at "
+                          f"this operating point (dF/du = 0 there, though the circuit's "
+                          f"parameters move with them): the model's column for them is zero",
+                          UserWarning, stacklevel=2)
+        if ignored:
+            warnings.warn(f"linearize_circuit: input(s) {ignored} change nothing in the "
+                          f"circuit (dF/du = 0 and no parameter moves): does build(u) read "
+                          f"u[{ignored[0]!r}]? The model's column for it is zero", UserWarning,
+                          stacklevel=2)
     return linearize(system, op, cols, outputs, direct=direct, held=held)

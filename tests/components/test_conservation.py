@@ -35,7 +35,9 @@ PARTS = {  # name: (number of hydraulic ports, factory, port names)
     "relief": (2, lambda: ReliefValve(p_crack=bar(80), A_s=mm2(20), k=2e5, x_max=1e-3,
                                       w=0.005), ("P", "T")),
     "pilot_relief": (2, lambda: PilotReliefValve(p_set=bar(90), A_main=mm2(20)), ("P", "T")),
-    "reducing": (2, lambda: PressureReducingValve(p_set=bar(60), A_max=mm2(2)), ("P", "A")),
+    # no drain: the ports alone carry the flow (the drain takes a dead-ended outlet's leak)
+    "reducing": (2, lambda: PressureReducingValve(p_set=bar(60), A_max=mm2(2), A_drain=0.0),
+                 ("P", "A")),
     "sequence": (2, lambda: SequenceValve(p_set=bar(70), A_max=mm2(2)), ("P", "A")),
     "flow_control": (2, lambda: FlowControlValve(A_meter=mm2(1), A_comp=mm2(4)), ("A", "B")),
     "line": (2, lambda: PiLine(l=2.0, d=0.008, p0=bar(80)), ("a", "b")),

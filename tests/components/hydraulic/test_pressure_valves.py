@@ -137,6 +137,34 @@ def test_reducing_valve_holds_its_outlet_below_the_setting():
     assert p_set - bar(5) < p_a < p_set
 
 
+@requires_solver
+def test_reducing_valve_holds_a_dead_ended_outlet_at_the_setting():
+    # a clamp at stall: 200 bar supply, 50 bar setting, nothing drawing from the outlet. The
+    # closed valve's leak no longer fills the outlet up to the supply (it did: 200.000 bar
+    # steady, creeping 1.9 bar/min): the drain above the setting takes it
+    from pvgraph import steady_state
+    p_set, dp_open, A_max = bar(50), bar(5), mm2(10)
+    A_leak, A_drain, p_drain = 1e-11, 1e-9, 101325.0
+    c = Circuit("clamp")
+    c.add("supply", PressureSource(p0=bar(200)))
+    c.add("dut", PressureReducingValve(p_set=p_set, A_max=A_max))
+    c.add("clamp", VolumeNode(V=cm3(50), p0=bar(45)))
+    c.connect("supply.port", "dut.P")
+    c.connect("dut.A", "clamp.port")
+
+    def balance(pa):       # flow in through the (almost) closed valve = flow to the drain
+        a_in = A_leak + A_max * (1 - _ramp(pa, p_set - dp_open, dp_open))
+        return orifice_flow(CD, a_in, bar(200) - pa, RHO, DP_T) - orifice_flow(
+            CD, A_drain * _ramp(pa, p_set, dp_open), pa - p_drain, RHO, DP_T)
+    p_exp = brentq(balance, p_set + 1.0, p_set + dp_open)
+    assert p_set < p_exp < p_set + 0.1 * dp_open
+    op = steady_state(c.compile())
+    assert op["clamp.port.p"] == pytest.approx(p_exp, rel=1e-7)
+    sol = simulate(c, 120.0, rtol=1e-8)
+    assert sol.final("clamp.port.p") == pytest.approx(p_exp, rel=1e-5)
+    assert np.max(sol["clamp.port.p"]) < p_exp * (1 + 1e-5)
+
+
 def test_sequence_valve_opens_at_its_setting():
     seq = dict(p_set=bar(80), A_max=mm2(10))
     q = lambda p_in: fixed_observed(SequenceValve(**seq), ["q"], P=Pressure(p_in),

@@ -4,6 +4,7 @@ opening and closing loops, the PVG 32 example."""
 import importlib.util
 import math
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -485,6 +486,29 @@ def test_an_input_the_builder_ignores_is_warned_about():
     with pytest.warns(UserWarning, match=r"input\(s\) \['Zzz'\] change nothing"):
         lm = linearize_circuit(lambda u: laminar(u), {"Q": Q, "Zzz": 1.0}, ["node.port.p"])
     assert lm.B[0, 0] == pytest.approx(BETA / V, rel=1e-9) and lm.B[0, 1] == 0.0
+
+
+def test_an_input_read_but_without_effect_at_the_operating_point_is_told_so():
+    """A shaft's stiffness at zero twist: dF/dk = 0 there, yet the build reads k (the poles
+    are +-j sqrt(k/J)); the warning says so rather than asking whether the build reads it."""
+    from pvgraph.components import Inertia, RotationalFixed, ShaftSpringDamper
+
+    def shaft(u):
+        c = Circuit("shaft")
+        c.add("f", RotationalFixed())
+        c.add("s", ShaftSpringDamper(k=u["k"]))
+        c.add("J", Inertia(J=0.02))
+        c.connect("f.shaft", "s.a")
+        c.connect("s.b", "J.shaft")
+        return c
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        lm = linearize_circuit(shaft, {"k": 500.0}, ["J.w"])
+    texts = [str(w.message) for w in seen if "linearize_circuit" in str(w.message)]
+    assert len(texts) == 1 and "no first-order effect at this operating point" in texts[0]
+    assert "does build(u) read" not in texts[0]
+    assert sorted(abs(np.linalg.eigvals(lm.A).imag)) == pytest.approx(
+        [np.sqrt(500.0 / 0.02)] * 2, rel=1e-6)
 
 
 def test_an_input_at_its_lower_bound_is_differenced_one_sided():
