@@ -608,6 +608,10 @@ def cmd_sweep(args) -> int:
     resolved = check_names(system, outputs)
     t_end = args.t_end if args.t_end is not None else (target.t_end or DEFAULT_T_END)
     cases = _sweep_cases(args, valid)
+    both = [n for n in outputs if n in cases[0]]
+    if both:
+        raise PvgraphError(f"--var {both[0]} is also a swept --param: its values are in the "
+                           f"case's {both[0]} column already; leave it out of --var")
     # compiled once per worker; each case runs with its values as runtime parameters
     from .analysis.sweep import CompiledRun
     run = functools.partial(_noted_case, CompiledRun(
@@ -813,6 +817,16 @@ def _tolerance(text: str) -> float:
 FIGURE_SUFFIXES = (".png", ".svg", ".pdf")
 
 
+def _csv_path(text: str) -> str:
+    """argparse type of --csv: a writable file named .csv (or .txt), checked before anything
+    runs (a table written into "out.xlsx" opens as a broken workbook)."""
+    path = _output_path(text)
+    if os.path.splitext(text)[1].lower() not in (".csv", ".txt"):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: --csv writes comma-separated text; name the file .csv (or .txt)")
+    return path
+
+
 def _figure_path(text: str) -> str:
     """argparse type of --plot and --bode: a file name with a figure extension, checked
     before anything runs."""
@@ -925,7 +939,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="relative tolerance (default: %(default)s)")
     s.add_argument("--var", action="append", help="variable to report (repeatable; names: "
                                                   "pvgraph vars TARGET)")
-    s.add_argument("--csv", type=_output_path, help="write the variables over time to this CSV file (SI)")
+    s.add_argument("--csv", type=_csv_path, help="write the variables over time to this CSV file (SI)")
     s.add_argument("--plot", type=_figure_path,
                    help="plot the variables to this PNG, SVG or PDF file")
     s.add_argument("--si", action="store_true", help="print SI units (default: bar, L/min, mm)")

@@ -721,6 +721,9 @@ def _describe_validation(where: str, exc: ValidationError, fields=(), given=None
                     # too large for SI: most likely meant in the unit engineers write it in
                     msg += (f": a plain number is in {unit}; give the unit with the number, "
                             f"e.g. {loc}=\"{value:g} {_USUAL[unit]}\"")
+            if not bound and msg.startswith(f"{loc} = {value!r}"):
+                lines.append(f"  {msg}")     # a units message names the field itself
+                continue
             lines.append(f"  {loc} = {bound or repr(value)}{'' if bound else ': ' + msg}")
     return f"invalid parameters for {where}:\n" + "\n".join(lines)
 

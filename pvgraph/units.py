@@ -202,7 +202,26 @@ _KINDS = {
     "kinematic viscosity", _dim(m=-1, kg=1, s=-1): "a dynamic viscosity",
 }
 
-_NUMBER = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*(.*?)\s*$")
+_NUMBER_ONLY = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*(.*?)\s*$")
+#: digits in groups of three split by a space (ISO 80000-1: "1 500 kg", "15 000 N/m")
+_GROUPED = re.compile(r"^(\s*[+-]?\d{1,3}(?:[ \u2009\u202f]\d{3})+)(?=[.,eE\s]|$)")
+
+
+class _Number:
+    """``_NUMBER_ONLY`` with the digit groups of the number joined first: ``match(text)``
+    gives the number and the unit after it as groups 1 and 2."""
+
+    @staticmethod
+    def match(text):
+        if not isinstance(text, str):
+            return None
+        m = _GROUPED.match(text)
+        if m:
+            text = re.sub(r"[ \u2009\u202f]", "", m.group(1)) + text[m.end():]
+        return _NUMBER_ONLY.match(text)
+
+
+_NUMBER = _Number()
 _TOKEN = re.compile(r"\s*(\*\*|[()*/^·.]|[+-]?\d+|[A-Za-zµμΩ%_]+\d*)")
 
 
@@ -228,10 +247,17 @@ def _symbol(name: str):
     raise UnitError(f"unknown unit {name!r}{_close_units(name)}")
 
 
+#: spellings of units met on data sheets and in other languages, by their lower case
+_MISSPELT = {"mn": "min", "min": "min", "mins": "min", "hr": "h", "hrs": "h", "sec": "s",
+             "secs": "s", "ltr": "L", "lt": "L"}
+
+
 def _close_units(name: str) -> str:
     """``"; did you mean 'psi'?"`` for a unit written in another case or close to a known
     one, else ``""``."""
     import difflib
+    if name.lower() in _MISSPELT:                      # "mn" (French), "Min", "hrs"
+        return f"; did you mean {_MISSPELT[name.lower()]!r}?"
     for prefix, scale in {**_PREFIXES, "K": 1e3}.items():   # "kpsi", "Krpm", "mdeg"
         rest = name[len(prefix):]
         if name.startswith(prefix) and rest in _UNITS and not _UNITS[rest][2]:
@@ -327,8 +353,12 @@ def _parse(text: str) -> tuple[float, tuple, int]:
                 f, d, a = f**e, tuple(x * e for x in d), a * e
             else:
                 f, d, a = _symbol(tok)
+        elif tok == "1" and peek() == "/":         # "1/min", "1/s"
+            f, d, a = 1.0, _ONE, 0
         elif tok.lstrip("+-").isdigit():
-            f, d, a = float(tok), _ONE, 0
+            raise UnitError(f"unit {text!r}: a number ({tok!r}) inside the unit; write the "
+                            f"whole number in front of the unit (digits grouped by single "
+                            f"spaces in threes are read as one number: '1 500 kg')")
         else:
             raise UnitError(f"unit {text!r}: unexpected {tok!r}")
         return power(f, d, a)

@@ -893,3 +893,21 @@ def test_the_command_line_runs_at_the_tolerance_simulate_and_sweep_default_to():
     parser = build_parser()
     assert parser.parse_args(["simulate", "demo"]).rtol == default
     assert parser.parse_args(["sweep", "demo", "--param", "a=1"]).rtol == default
+
+
+def test_a_swept_parameter_asked_as_a_var_and_a_csv_of_another_format_exit_2(rig_file, tmp_path,
+                                                                               capsys):
+    # each case used to fail after running ("output 'pump.Q' has the name of a parameter"),
+    # and --csv out.xlsx wrote comma-separated text into a workbook's name
+    out = tmp_path / "study"
+    assert main(["sweep", f"{rig_file}:build", "--param", "pump.Q=6 L/min,12 L/min",
+                 "--var", "pump.Q", "--var", "node.port.p", "--steady", "--out",
+                 str(out)]) == 2
+    assert "--var pump.Q is also a swept --param" in capsys.readouterr().err
+    assert not out.exists()
+    with pytest.raises(SystemExit) as stop:
+        main(["simulate", f"{rig_file}:build", "--t-end", "1", "--csv",
+              str(tmp_path / "out.xlsx")])
+    assert stop.value.code == 2
+    assert "name the file .csv" in capsys.readouterr().err
+    assert not (tmp_path / "out.xlsx").exists()

@@ -259,7 +259,7 @@ def test_a_circuit_added_to_itself_or_to_its_child_is_refused():
 @pytest.mark.parametrize("value, message", [
     (True, "A = True: True is a bool, not a number [m^2]"),
     (5e-324, "A = 5e-324: 5e-324 is outside the magnitudes a model can compute with"),
-    ("150 bar", "A = '150 bar': A = '150 bar' is a pressure, but A is an area [m^2]"),
+    ("150 bar", "A = '150 bar' is a pressure, but A is an area [m^2]"),
 ])
 def test_parameter_values_that_would_mislead_get_named_errors(value, message):
     with pytest.raises(ParameterError) as exc:

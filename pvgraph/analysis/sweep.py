@@ -835,6 +835,16 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
         if bad:
             raise SweepError(f"units: names and units are strings, got {bad!r}")
     param_names = list(cases[0])
+    if isinstance(run, CompiledRun):
+        labels = set(run.outputs)
+        clash = sorted(labels & (set(param_names) | set(RESERVED_COLUMNS)))
+        if clash:
+            raise SweepError(f"output {clash[0]!r} has the name of a swept parameter or of a "
+                             f"column every sweep writes ({', '.join(RESERVED_COLUMNS)}): the "
+                             f"case's value is in its own column already; drop it from the "
+                             f"outputs or give it another label (outputs={{'{clash[0]} out': "
+                             f"'{run.outputs[clash[0]]}'}})")
+        run.validate(cases[0])      # names wrong for every case: told before any case runs
     records: dict[int, CaseResult] = {}
     log_path = None if out is None else os.path.join(os.fspath(out), LOG_NAME)
     identity = run_identity(run)
@@ -857,6 +867,14 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
         workers = min(workers, max(len(todo), 1), MAX_PROCESS_WORKERS)
         _check_picklable(run, cases)
     tick = _progress_callback(progress, len(cases))
+    if out is not None:
+        try:
+            os.makedirs(os.fspath(out), exist_ok=True)
+        except OSError as exc:
+            raise SweepError(f"out={os.fspath(out)!r}: the folder cannot be made "
+                             f"({exc.strerror or exc})") from None
+        if not os.access(os.fspath(out), os.W_OK | os.X_OK):
+            raise SweepError(f"out={os.fspath(out)!r}: the folder is not writable")
     log = _open_log(log_path, cases, param_names, units, records, identity) \
         if log_path else None
     done = len(records)
@@ -1163,6 +1181,40 @@ class CompiledRun:
         if self.circuit is not None and entry["base"] is None:
             entry["base"] = self._circuit().compile()
             entry["compilations"] += 1
+
+    def validate(self, case: Mapping[str, Any]) -> None:
+        """Raise :class:`SweepError` for case names the circuit (or the build) does not take
+        and outputs it does not know, from ``case`` (one case: the names are the same for
+        all). Values are not judged here: a value a component refuses fails its case only.
+        Compiles in this process (its cache keeps the system for a serial sweep)."""
+        if self.build is not None:
+            try:
+                system = self.system(case)
+            except TypeError as exc:       # build(**case) with an argument it does not take
+                raise SweepError(f"CompiledRun: the case names {sorted(case)} do not fit "
+                                 f"the build: {exc}") from None
+            except (ParameterError, PvgraphError):
+                return                     # this case's values: it fails on its own
+        else:
+            self.prepare()
+            system = self._cache()["base"]
+            unknown = [k for k in case if k not in system.parameters]
+            if unknown:
+                close = difflib.get_close_matches(unknown[0], list(system.parameters), n=3,
+                                                  cutoff=0.6)
+                raise SweepError(
+                    f"CompiledRun: {system.name}: no parameter named {unknown[0]!r}"
+                    + (f". Close matches: {close}" if close else "")
+                    + ". Case names are the circuit's parameters, <component path>.<field> "
+                    "(system.parameter_names lists the runtime ones)")
+        if self.reduce is not None:
+            return
+        for label, name in self.outputs.items():
+            try:
+                system.resolve_name(name)
+            except (KeyError, PvgraphError) as exc:
+                text = exc.args[0] if exc.args else str(exc)
+                raise SweepError(f"CompiledRun: output {label!r}: {text}") from None
 
     def compilations(self) -> int:
         """Compilations this object (or its key) caused in this process."""

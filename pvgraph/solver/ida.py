@@ -725,4 +725,13 @@ class IDAIntegrator:
             culprits = dominant_names(data, self.var_names)
             msg = (f"{what}; the Newton iteration did not converge, its correction is "
                    f"dominated by {', '.join(map(repr, culprits))}")
+            d = np.asarray(data, dtype=float)
+            j = int(np.nanargmax(np.where(np.isfinite(d), np.abs(d), np.inf))) if d.size else -1
+            if j >= 0 and abs(h) <= 1e-9 * max(abs(t), 1e-3) and self._reads_no_rate(j):
+                msg += (f". {culprits[0]!r} is algebraic (no equation reads its rate) and the "
+                        f"step has shrunk to nothing: where the equations constrain states "
+                        f"directly (a pendulum's length on its positions), the DAE's index is "
+                        f"above one; reduce it (differentiate the constraint), or run it with "
+                        f"its algebraic variables named and out of the error test "
+                        f"(suppress_alg=True with algebraic=[...])")
         raise SolverError(head + msg + ".", t=t, h=h, culprits=culprits)

@@ -162,7 +162,7 @@ def consistent_initial_conditions(fun, t0, y0, yp0, mode, algebraic, jacobian, r
     if lu is None:
         lu = LUSolver(lu_kind, pattern=lu_pattern)
     r = np.asarray(fun(t0, y, yp), dtype=float)
-    for _ in range(IC_MAX_ITERS):
+    for it in range(IC_MAX_ITERS):
         if not np.all(np.isfinite(r)):
             raise InitializationError(
                 f"consistent initialisation at t = {t0:.9g}: the residual is not finite; "
@@ -173,7 +173,8 @@ def consistent_initial_conditions(fun, t0, y0, yp0, mode, algebraic, jacobian, r
         m = jacobian.mixed_matrix(t0, y, yp, r, cy, cyp, scale)
         info = lu.factor(m)
         if info != 0:
-            _raise_singular(info, mode, cy, t0, var_names, m)
+            _raise_singular(info, mode, cy, t0, var_names, m,
+                            moved=_moved_text(y0, yp0, y, yp, cy, var_names) if it else None)
         dz = lu.solve(r)
         merit = wrms_norm(dz, wz)
         if merit <= IC_TOL:
@@ -237,10 +238,30 @@ def algebraic_rates(fun, t0, y, yp, cy, lu, t_span_length):
 NULL_VECTOR_MAX_N = 3000
 
 
-def _raise_singular(info, mode, cy, t0, var_names, m=None):
+def _moved_text(y0, yp0, y, yp, cy, var_names):
+    """Where the Newton iterates of the initialisation took the unknowns furthest from the
+    values given (for a failure at an iterate rather than at the start)."""
+    y0 = np.asarray(y0, dtype=float)
+    yp0 = np.asarray(yp0, dtype=float)
+    given = np.where(cy != 0.0, y0, yp0)
+    now = np.where(cy != 0.0, y, yp)
+    change = np.abs(now - given) / (np.abs(given) + 1.0)
+    parts = []
+    for j in np.argsort(-change)[:3]:
+        if not change[j] > 0.0:
+            break
+        name = var_names[j] if var_names is not None else f"y[{j}]"
+        what = "y" if cy[j] else "y'"
+        parts.append(f"{what} of {name!r} from {given[j]:.6g} to {now[j]:.6g}")
+    return ", ".join(parts)
+
+
+def _raise_singular(info, mode, cy, t0, var_names, m=None, moved=None):
     """Explain a singular initialisation matrix: by the unknowns of its null vector (the
     combination the equations leave undetermined: a loop that fixes none of its members,
-    two parts pushing one quantity), else by the column where the factorisation stopped."""
+    two parts pushing one quantity), else by the column where the factorisation stopped.
+    ``moved``: where the Newton iterates took the unknowns, when the matrix is not the
+    start's."""
     def label(j):
         name = var_names[j] if var_names is not None else f"y[{j}]"
         return f"{'y' if cy[j] else 'y' + chr(39)} of {name!r}"
@@ -249,12 +270,16 @@ def _raise_singular(info, mode, cy, t0, var_names, m=None):
         bad = _nonfinite_entries(m)
         if bad is not None:
             rows, cols = bad
+            where = ("the start (a square root or power at zero, a division by zero), or "
+                     "the given jac returns NaN there") if not moved else (
+                f"a Newton iterate, not at the values given: the iteration moved {moved}, "
+                f"where the equations overflow or are undefined. Give start values nearer the "
+                f"solution")
             raise InitializationError(
                 f"consistent initialisation ({mode!r}) at t = {t0:.9g}: the Jacobian is not "
                 f"finite (NaN or inf) in equation(s) {rows[:5]}, column(s) of "
-                f"{', '.join(label(j) for j in cols[:5])}: a derivative is undefined at the "
-                f"start (a square root or power at zero, a division by zero), or the given "
-                f"jac returns NaN there.")
+                f"{', '.join(label(j) for j in cols[:5])}: a derivative is undefined at "
+                f"{where}.")
     null = _null_columns(m)
     if null:
         raise InitializationError(
@@ -262,7 +287,10 @@ def _raise_singular(info, mode, cy, t0, var_names, m=None):
             f"singular: the equations do not determine the combination of "
             f"{', '.join(label(j) for j in null)}: they hold for every value of it, or for "
             f"none (an algebraic loop with gain 1, two components fixing one quantity, or "
-            f"an index above one).")
+            f"an index above one), or at "
+            f"{'these values' if moved else 'the values given'} they change too little with "
+            f"it to tell (far out on the flat side of an exponential, a saturation or a "
+            f"closed valve: give start values nearer the solution).")
     col = info - 1
     if col < 0:
         raise InitializationError(

@@ -226,16 +226,19 @@ class JacobianEvaluator:
             yt = y.copy()
             ypt = yp.copy()
             for j in range(n):
-                for grow in _GROWTHS:
+                for k, grow in enumerate(_GROWTHS):
                     yt[j] += grow * dy[j]
                     ypt[j] += grow * dyp[j]
-                    col = np.asarray(fun(t, yt, ypt)) - r
+                    got = np.asarray(fun(t, yt, ypt)) - r
                     yt[j] = y[j]
                     ypt[j] = yp[j]
                     self.nfev += 1
+                    if k and not np.all(np.isfinite(got)):
+                        break       # a grown increment overflowed: the column stays zero
+                    col, used = got, grow
                     if col.any():
                         break
-                out[:, j] = col / (grow * inc[j])
+                out[:, j] = col / (used * inc[j])
             return sp.csc_matrix(out) if self.sparse else out
         data = np.empty(len(self._fd_rows))
         rows, cols = self._fd_rows, self._fd_cols
@@ -261,6 +264,8 @@ class JacobianEvaluator:
                 rr = np.asarray(fun(t, yt, ypt))
                 self.nfev += 1
                 got = (rr[rows[at]] - r[rows[at]]) / (grow * inc[j])
+                if not np.all(np.isfinite(got)):
+                    break       # a grown increment overflowed: the column stays zero
                 if got.any():
                     data[at] = got
                     break

@@ -227,6 +227,10 @@ def check_arguments(t_span, y0, yp0, rtol, atol, max_steps, var_names):
         raise ValueError(f"t_span must be two numbers (t0, t_end), got {t_span!r}") from None
     if not (np.isfinite(t0) and np.isfinite(t_end) and t_end > t0):
         raise ValueError(f"t_span must be finite and increasing, got {t_span!r}")
+    for name, value in (("y0", y0), ("yp0", yp0)):
+        if np.ndim(value) > 1:
+            raise ValueError(f"{name} must be one-dimensional (one value per variable), got "
+                             f"shape {np.shape(value)}")
     y0 = np.array(y0, dtype=float).ravel()
     yp0 = np.array(yp0, dtype=float).ravel()
     n = y0.size
@@ -505,6 +509,35 @@ def _nonnegative(nonnegative, n, y0, var_names):
     return idx if idx.size else None
 
 
+def _of_a_system(residual) -> bool:
+    """Whether ``residual`` is a compiled System's (its algebraic mask is the compiler's)."""
+    from pvgraph.system import System
+    return isinstance(getattr(residual, "__self__", None), System)
+
+
+def _check_declared_algebraic(jacobian, t0, y0, yp0, r0, alg_mask, var_names):
+    """Refuse an ``algebraic=`` that names a variable whose rate an equation reads at the start
+    (a state declared algebraic is integrated wrongly without a word: with ``suppress_alg`` it
+    leaves the error test, and the start computes its rate as if it had none)."""
+    m = jacobian.mixed_matrix(t0, y0, yp0, r0, np.zeros(y0.size), np.ones(y0.size),
+                              np.maximum(np.abs(yp0), 1.0))
+    m = m.toarray() if hasattr(m, "toarray") else np.asarray(m)
+    wrong = [j for j in np.flatnonzero(alg_mask)
+             if np.all(np.isfinite(m[:, j])) and np.any(m[:, j] != 0.0)]
+    if not wrong:
+        return
+    told = []
+    for j in wrong[:4]:
+        i = int(np.flatnonzero(m[:, j])[np.argmax(np.abs(m[np.flatnonzero(m[:, j]), j]))])
+        name = f"y[{j}]" + (f" ({var_names[j]!r})" if var_names is not None else "")
+        told.append(f"{name}: its rate appears in equation {i} (dF[{i}]/dy'[{j}] = "
+                    f"{m[i, j]:.3g} at t0)")
+    more = f" and {len(wrong) - 4} more" if len(wrong) > 4 else ""
+    raise ValueError("algebraic= names variables whose rates the equations read, so they are "
+                     "differential, not algebraic: " + "; ".join(told) + more + ". Leave them "
+                     "out of algebraic= (an algebraic variable's rate appears in no equation).")
+
+
 def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, suppress_alg, jac,
                jac_sparsity, event_list, t_eval, max_step, first_step, calc_initial,
                max_order, max_steps, var_names, dense_output, no_growth_after_failure=None,
@@ -524,6 +557,8 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     else:
         fun = residual
     jacobian = JacobianEvaluator(fun, n, jac, jac_sparsity, typical=atol / rtol)
+    if alg_given and alg_mask.any() and not _of_a_system(residual):
+        _check_declared_algebraic(jacobian, t0, y0, yp0, r0, alg_mask, var_names)
     lu_kind = _lu_kind(linear_solver, residual, n)
     if lu_kind == "c":
         jacobian.dense_only = True      # the C LU takes dense matrices (n <= CLU_MAX_N)

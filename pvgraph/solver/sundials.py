@@ -192,7 +192,8 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
     .. [2] scikit-sundae, https://github.com/NatLabRockies/scikit-sundae
     """
     sksundae = _import_sksundae()
-    from .solve import _chattering, check_arguments
+    from .solve import (_as_mask, _chattering, _check_declared_algebraic, _of_a_system,
+                        check_arguments)
     t0, t_end, y, yp, rtol, atol_arr, var_names = check_arguments(
         t_span, y0, yp0, rtol, atol, max_steps, var_names)
     n = y.size
@@ -201,10 +202,7 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
         raise ValueError(f"residual returned shape {r0.shape}, expected ({n},)")
     if calc_initial not in ("algebraic", "all", None):
         raise ValueError(f"calc_initial must be 'algebraic', 'all' or None, got {calc_initial!r}")
-    alg_mask = np.zeros(n, dtype=bool)
-    if algebraic is not None:
-        a = np.asarray(algebraic)
-        alg_mask[np.flatnonzero(a) if a.dtype == bool else a.astype(int)] = True
+    alg_mask = _as_mask(algebraic, n)
     event_list = normalize_events(events)
     t_eval = check_times(t0, t_end, t_eval, max_step, first_step)
 
@@ -215,7 +213,17 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
         return np.asarray(residual(t, yy, ypp), dtype=float)
 
     jacobian = JacobianEvaluator(fun, n, jac, jac_sparsity, typical=atol_arr / rtol)
+    if algebraic is not None and alg_mask.any() and not _of_a_system(residual):
+        _check_declared_algebraic(jacobian, t0, y, yp, r0, alg_mask, var_names)
     differential = ~alg_mask
+    if jac is None:
+        # the built-in solver's differences (increments from each variable's typical size
+        # atol / rtol and the step), not IDA's difference quotients: with increments of the
+        # order of atol, a variable far below its atol (Robertson's y2 ~ 1e-13 at atol 1e-6)
+        # gets a column wrong by orders of magnitude, and the run drifts with success
+        def jac(t, yy, ypp, cj):
+            return jacobian.iteration_matrix(t, yy, ypp, fun(t, yy, ypp), cj,
+                                             1.0 / (rtol * np.abs(yy) + atol_arr), 1.0 / cj)
 
     def initialise(t, yy, ypp, mode):
         """pvgraph's consistent values and the first step from the system's time scales."""

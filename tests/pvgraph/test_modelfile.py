@@ -90,7 +90,7 @@ def test_the_schema_describes_the_format():
 
 @pytest.mark.parametrize("change, message", [
     (('"10 L/min"', '"10 bar"'), "line 8 (components.pump.params): invalid parameters for "
-                                 "FlowSource:\n  Q = '10 bar': Q = '10 bar' is a pressure"),
+                                 "FlowSource:\n  Q = '10 bar' is a pressure"),
     (('"Orifice"', '"Orifce"'), "line 16 (components.orifice.type): unknown component type "
                                 "'Orifce'; did you mean 'Orifice'"),
     (('"tank.port"]]', '"tank.prt"]]'), "line 4 (connections.1): Tank 'tank' has no port 'prt'"),

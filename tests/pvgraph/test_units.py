@@ -290,3 +290,34 @@ def test_a_gauge_or_absolute_mark_is_refused_not_read_as_grams():
         with pytest.raises(UnitError, match="a gauge or absolute mark is not read"):
             to_si(text)
     assert to_si("10 bar") == 1e6 and to_si("3 Pa") == 3.0
+
+
+@pytest.mark.parametrize("text, unit, si", [
+    ("1 500 kg", "kg", 1500.0),                 # digit groups (ISO 80000-1)
+    ("15 000 N/m", "N/m", 15000.0),
+    ("1 000 bar", "Pa", 1e8),
+    ("1 200 L/min", "m^3/s", 0.02),
+    ("100 000 Pa", "Pa", 1e5),
+    ("-2 500.5 N", "N", -2500.5),
+    ("1\u202f500 rpm", "rad/s", 1500 * 2 * math.pi / 60),   # a narrow no-break space
+    ("10 1/s", "1/s", 10.0),                    # a "1/" numerator is no number in the unit
+])
+def test_digit_groups_are_one_number(text, unit, si):
+    # "1 500 kg" was 1 x 500 kg and "15 000 N/m" was 15 x 0 N/m = 0, silently
+    assert to_unit(text, unit) == pytest.approx(si, rel=1e-12)
+
+
+@pytest.mark.parametrize("text", ["2 3 bar", "1 5000 kg", "10 2 L/min", "3 bar 2"])
+def test_a_number_inside_a_unit_is_refused(text):
+    with pytest.raises(UnitError, match="number|unexpected"):
+        to_unit(text, "Pa" if "bar" in text else ("kg" if "kg" in text else "m^3/s"))
+
+
+def test_unit_errors_name_the_field_once_and_suggest_minutes():
+    from pvgraph.components import FlowSource, VolumeNode
+    with pytest.raises(ParameterError) as got:
+        VolumeNode(V=1e-3, p0="10 bars")
+    assert str(got.value).count("p0 = '10 bars'") == 1 and "did you mean 'bar'" in str(got.value)
+    for text in ("10 L/mn", "10 L/Min"):
+        with pytest.raises(ParameterError, match="did you mean 'min'"):
+            FlowSource(Q=text)

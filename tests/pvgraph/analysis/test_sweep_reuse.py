@@ -114,8 +114,8 @@ def test_bad_setups_are_named():
     with pytest.raises(SweepError, match="not both"):
         CompiledRun(orifice_bench, build=orifice_bench, outputs=["node.port.p"], steady=True)
     run = CompiledRun(orifice_bench, outputs=["node.port.p"], steady=True)
-    res = sweep(run, [{"orifice.area": 1e-6}], backend="serial")
-    assert res[0].status == "failed" and "orifice.A" in res[0].error_message
+    with pytest.raises(SweepError, match=r"no parameter named 'orifice.area'.*'orifice.A'"):
+        sweep(run, [{"orifice.area": 1e-6}], backend="serial")
 
 
 def test_reuse_compiled_gives_the_built_circuits_values_and_compiles_new_structures():
@@ -186,3 +186,29 @@ def test_a_case_with_other_connections_is_compiled_not_reused():
         res = sweep(run, [{"series": 0}, {"series": 1}], backend="serial")
     q = lambda Q: 870.0 / 2 * (Q / (0.6 * 2e-6)) ** 2
     np.testing.assert_allclose(res.column("p"), [q(0.5e-4), 2 * q(1e-4)], rtol=1e-6)
+
+
+@pytest.mark.parametrize("names, outputs, message", [
+    ({"orifice.Area": [1e-6, 2e-6]}, {"p": "node.port.p"},
+     r"no parameter named 'orifice.Area'. Close matches: \['orifice.A'"),
+    ({"orifice.A": [1e-6, 2e-6]}, {"p": "node.port.pp"},
+     r"output 'p': .*no variable or output named 'node.port.pp'"),
+    ({"orifice.A": [1e-6, 2e-6]}, {"orifice.A": "orifice.A"},
+     r"output 'orifice.A' has the name of a swept parameter"),
+])
+def test_names_wrong_for_every_case_are_refused_before_any_case_runs(tmp_path, names, outputs,
+                                                                      message):
+    # each case used to fail in its worker with the good message kept in the case record;
+    # the sweep returned "0 ok, 2 failed" without a word
+    run = CompiledRun(orifice_bench, outputs=outputs, steady=True)
+    with pytest.raises(SweepError, match=message):
+        sweep(run, grid(names), backend="serial", out=tmp_path / "study")
+    assert not (tmp_path / "study").exists()       # nothing written
+
+
+def test_an_output_folder_that_cannot_be_made_is_a_sweep_error(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    run = CompiledRun(orifice_bench, outputs={"p": "node.port.p"}, steady=True)
+    with pytest.raises(SweepError, match=r"out=.*the folder cannot be made"):
+        sweep(run, grid({"orifice.A": [1e-6]}), backend="serial", out=blocker / "study")

@@ -185,3 +185,63 @@ def test_a_non_finite_jacobian_at_the_start_is_named():
                                                   r"equation\(s\) \[0\], column\(s\) of .*'b'"):
         solve_dae(lambda t, y, yp: np.array([yp[0] + y[0], y[1] - 1.0]), (0.0, 1.0),
                   [1.0, 1.0], [-1.0, 0.0], jac=jac, algebraic=[1], var_names=["a", "b"])
+
+
+@pytest.mark.parametrize("backend", ["pvgraph", "ida"])
+def test_a_state_declared_algebraic_is_refused_by_name(backend):
+    # y' = -y with algebraic=[0]: integrated as if y had no rate, it ended at 0.418
+    # (exact e^-1) with success
+    if backend == "ida":
+        pytest.importorskip("sksundae")
+        from pvgraph.solver import solve_dae_sundials as solve
+    else:
+        solve = solve_dae
+    with pytest.raises(ValueError, match=r"y\[0\]: its rate appears in equation 0"):
+        solve(lambda t, y, yp: np.array([yp[0] + y[0]]), (0.0, 1.0), [1.0], [-1.0],
+              algebraic=[0])
+    # an algebraic variable correctly named still runs: x' = -x, 0 = z - 2 x
+    sol = solve(lambda t, y, yp: np.array([yp[0] + y[0], y[1] - 2.0 * y[0]]), (0.0, 1.0),
+                [1.0, 2.0], [-1.0, 0.0], algebraic=[1], rtol=1e-8, atol=1e-10)
+    assert sol.y[-1, 1] == pytest.approx(2.0 * np.exp(-1.0), rel=1e-6)
+
+
+@pytest.mark.parametrize("backend", ["pvgraph", "ida"])
+def test_a_two_dimensional_start_and_algebraic_out_of_range_are_refused(backend):
+    if backend == "ida":
+        pytest.importorskip("sksundae")
+        from pvgraph.solver import solve_dae_sundials as solve
+    else:
+        solve = solve_dae
+    f = lambda t, y, yp: yp + y
+    with pytest.raises(ValueError, match=r"y0 must be one-dimensional.*shape \(1, 2\)"):
+        solve(f, (0.0, 1.0), [[1.0, 2.0]], [-1.0, -2.0])
+    with pytest.raises(ValueError, match=r"algebraic indices \[3\] out of range for n = 1"):
+        solve(lambda t, y, yp: yp + y, (0.0, 1.0), [1.0], [-1.0], algebraic=[3])
+
+
+def test_an_index_three_pendulum_failing_at_once_is_told_its_index():
+    # x'' = -lam x, y'' = -lam y - g, 0 = x^2 + y^2 - 1 (index 3), as first-order DAE
+    def f(t, q, qp):
+        x, y, u, v, lam = q
+        return np.array([qp[0] - u, qp[1] - v, qp[2] + lam * x, qp[3] + lam * y + 9.81,
+                         x * x + y * y - 1.0])
+    x0, y0, lam0 = np.sin(0.5), -np.cos(0.5), 9.81 * np.cos(0.5)
+    q0 = np.array([x0, y0, 0.0, 0.0, lam0])
+    qp0 = np.array([0.0, 0.0, -lam0 * x0, -lam0 * y0 - 9.81, 0.0])
+    with pytest.raises(SolverError, match=r"index is\s+above one; reduce it") as got:
+        solve_dae(f, (0.0, 1.0), q0, qp0, rtol=1e-8, atol=1e-8)
+    assert "'y[4]' is algebraic" in str(got.value) or "is algebraic" in str(got.value)
+
+
+def test_a_difference_column_lost_to_rounding_is_not_grown_into_an_overflow():
+    # 0 = exp(z) - x from z = -50: the column exp(-50) = 2e-22 is below the rounding of
+    # the residual (5); the growing increments reached z = 7e5, where exp overflows, and
+    # the start was told "a derivative is undefined at the start"
+    f = lambda t, y, yp: np.array([yp[0] + y[0], np.exp(y[1]) - y[0]])
+    with np.errstate(over="ignore"):
+        with pytest.raises(InitializationError) as got:
+            solve_dae(f, (0.0, 1.0), [5.0, -50.0], [0.0, 0.0])
+    assert "not finite" not in str(got.value)
+    assert "give start values nearer the solution" in str(got.value)
+    sol = solve_dae(f, (0.0, 1.0), [5.0, 1.0], [0.0, 0.0], rtol=1e-8, atol=1e-10)
+    assert sol.y[0, 1] == pytest.approx(np.log(5.0), rel=1e-8)
