@@ -248,6 +248,8 @@ class Circuit:
 
     def connect(self, *ports) -> None:
         """Join two or more ports into one connection set (a node)."""
+        if len(ports) == 1 and isinstance(ports[0], (list, tuple)):
+            ports = tuple(ports[0])         # connect([a, b, c]) as connect(a, b, c)
         if len(ports) < 2:
             raise CircuitError(f"circuit {self.path!r}: connect() needs at least two ports, "
                                f"got {len(ports)}")
@@ -324,6 +326,12 @@ class Circuit:
             return PortRef(self, name)
         comps = self.__dict__.get("_components", {})
         hint = (f" {name!r} is a component: use circuit[{name!r}]." if name in comps else "")
+        if not hint:
+            import difflib
+            close = difflib.get_close_matches(name, list(comps), n=3, cutoff=0.6)
+            if close:
+                hint = (f" Did you mean the component {close[0]!r}? Components are read as "
+                        f"circuit[{close[0]!r}] (or the object add() returned).")
         raise AttributeError(f"circuit {self.__dict__.get('name')!r} has no port {name!r}; its "
                              f"ports are {sorted(exposed)}.{hint}")
 

@@ -37,6 +37,7 @@ import inspect
 import json
 import math
 import os
+import re
 import sys
 import warnings
 from dataclasses import dataclass, field
@@ -92,6 +93,12 @@ class Target:
         try:
             c = self.build(**self.options)
         except TypeError as exc:
+            if "missing" in str(exc) and "required" in str(exc) and \
+                    _raised_by_call(exc.__traceback__):
+                missing = re.findall(r"'(\w+)'", str(exc).split(":", 1)[-1])
+                example = " ".join(f"--option {m}=..." for m in missing) or "--option NAME=..."
+                raise PvgraphError(f"{self.spec}: the builder needs {', '.join(missing)} "
+                                   f"({exc}); give {example}") from None
             if self.options and "argument" in str(exc):
                 raise PvgraphError(f"{self.spec}: the builder does not take the options "
                                    f"{sorted(self.options)}: {exc}") from None
@@ -105,6 +112,16 @@ class Target:
             raise PvgraphError(f"{self.spec} returned {type(c).__name__}, not a pvgraph "
                                f"Circuit")
         return c
+
+
+def _raised_by_call(tb) -> bool:
+    """Whether a TypeError was raised by the builder's call itself (its arguments), not by
+    code inside the builder."""
+    depth = 0
+    while tb is not None:
+        depth += 1
+        tb = tb.tb_next
+    return depth == 1
 
 
 def _line_in(tb, source: str | None) -> str | None:

@@ -702,8 +702,13 @@ def _describe_validation(where: str, exc: ValidationError, fields=(), given=None
         if err["type"] == "missing":
             lines.append(f"  {loc}: required parameter not given")
         elif err["type"] == "extra_forbidden":
-            lines.append(f"  {loc} = {err.get('input')!r}: not a parameter of {where}; it accepts "
-                         f"{', '.join(fields)}")
+            import difflib
+            close = difflib.get_close_matches(loc, list(fields), n=2,
+                                              cutoff=0.5 if len(loc) <= 3 else 0.7) or \
+                [f for f in fields if f.lower() == loc.lower()]
+            mean = f"did you mean {' or '.join(map(repr, close))}? " if close else ""
+            lines.append(f"  {loc} = {err.get('input')!r}: not a parameter of {where}; {mean}it "
+                         f"accepts {', '.join(fields)}")
         else:
             msg = err["msg"].removeprefix("Value error, ")
             bound = _bound_in_units(err, loc, given, model)

@@ -259,6 +259,27 @@ def _full_vector(system, values, what: str) -> np.ndarray:
     return out
 
 
+def _nonnegative_indices(system, names) -> list[int]:
+    """The unknowns' indices of ``nonnegative=[names]``: an unknown, or an alias that is one
+    of them (``node.port.p`` of a volume's pressure); a variable fixed by parameters, one of
+    negative sign or a derived output cannot be held >= 0 by the solver, and is refused."""
+    out = []
+    for name in names:
+        if not isinstance(name, str):
+            raise PvgraphError(f"simulate: nonnegative takes variable names or indices of "
+                               f"system.names, not both; got {name!r} among names")
+        try:
+            coef, idx, off = system.resolve(name)
+        except KeyError as exc:
+            raise PvgraphError(f"simulate: nonnegative: {exc.args[0]}") from None
+        if idx is None or coef <= 0.0 or off != 0.0:
+            raise PvgraphError(f"simulate: nonnegative: {name!r} is not an unknown of the run "
+                               f"(fixed by parameters, or another unknown scaled or shifted): "
+                               f"the solver can hold only unknowns >= 0")
+        out.append(idx)
+    return out
+
+
 def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
              atol: float | None = None, solver: str = "pvgraph", t_eval=None,
              max_step: float | None = None, start: dict[str, float] | None = None,
@@ -385,6 +406,9 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
         options.setdefault("suppress_alg", bool(np.any(~np.asarray(system.algebraic))))
         options.setdefault("no_growth_after_failure", True)
         options.setdefault("newton_iterate_retry", True)
+    if isinstance(options.get("nonnegative"), (list, tuple)) and \
+            any(isinstance(v, str) for v in options["nonnegative"]):
+        options["nonnegative"] = _nonnegative_indices(system, options["nonnegative"])
     kwargs = dict(rtol=rtol, atol=atol_vec, algebraic=system.algebraic,
                   jac=system.solver_jacobian(), jac_sparsity=system.jac_sparsity,
                   events=system._run_events() or None, t_eval=t_eval, max_step=max_step,

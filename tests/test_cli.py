@@ -911,3 +911,14 @@ def test_a_swept_parameter_asked_as_a_var_and_a_csv_of_another_format_exit_2(rig
     assert stop.value.code == 2
     assert "name the file .csv" in capsys.readouterr().err
     assert not (tmp_path / "out.xlsx").exists()
+
+
+def test_a_builder_argument_no_option_gives_is_named(tmp_path, capsys):
+    # a raw TypeError traceback from the command line's call of build() before
+    path = tmp_path / "needs_q.py"
+    path.write_text(RIG_FILE.replace('def build(Q="10 L/min"):', "def build(Q):"))
+    assert main(["simulate", f"{path}:build", "--t-end", "0.1"]) == 2
+    err = capsys.readouterr().err
+    assert "the builder needs Q" in err and "--option Q=..." in err
+    assert main(["simulate", f"{path}:build", "--t-end", "1", "--var", "node.port.p",
+                 "--option", "Q=10 L/min"]) == 0

@@ -847,3 +847,40 @@ def test_absolute_tolerances_per_unknown_are_taken_and_checked():
         simulate(system, 0.1, atol=[1e-6])
     with pytest.raises(PvgraphError, match="one number per unknown, each between 0 and 1"):
         simulate(system, 0.1, atol=[1e-6, 2.0][:system.n] + [1e-6] * (system.n - 2))
+
+
+def test_a_list_of_ports_a_misspelt_component_and_parameter_are_told():
+    from pvgraph.components import Cylinder
+    c = Circuit("demo")
+    pump = c.add("pump", FlowSource(Q="5 L/min"))
+    node = c.add("node", VolumeNode(V="0.5 L"))
+    orifice = c.add("orifice", Orifice(A="2 mm^2"))
+    c.add("tank", Tank())
+    c.connect([pump.port, node.port, orifice.a])        # a list: one node of three ports
+    c.connect("orifice.b", "tank.port")
+    assert len(c._connections) == 2
+    assert simulate(c, 0.5, rtol=1e-8).final("node.port.p") == pytest.approx(
+        435.0 * (5 / 60e3 / 1.2e-6) ** 2, rel=1e-4)
+    with pytest.raises(AttributeError, match=r"Did you mean the component 'node'"):
+        c.nod
+    with pytest.raises(ParameterError, match=r"strok = 0.1: not a parameter of Cylinder; did "
+                                             r"you mean 'stroke'"):
+        Cylinder(strok=0.1, A_A=1e-3, A_rod=1e-4, V_dead_A=1e-5, V_dead_B=1e-5)
+
+
+def test_nonnegative_takes_variable_names():
+    from pvgraph.errors import PvgraphError
+    c = Circuit("demo")
+    c.add("pump", FlowSource(Q="5 L/min"))
+    c.add("node", VolumeNode(V="0.5 L"))
+    c.add("orifice", Orifice(A="2 mm^2"))
+    c.add("tank", Tank())
+    c.connect("pump.port", "node.port", "orifice.a")
+    c.connect("orifice.b", "tank.port")
+    sol = simulate(c, 0.5, nonnegative=["node.port.p"], rtol=1e-8)
+    # steady p = rho/2 (Q / (Cd A))^2 with rho 870, Cd 0.6
+    assert sol.final("node.port.p") == pytest.approx(435.0 * (5 / 60e3 / 1.2e-6) ** 2, rel=1e-4)
+    with pytest.raises(PvgraphError, match=r"nonnegative: .*'node.port.pp'.*node.port.p"):
+        simulate(c, 0.1, nonnegative=["node.port.pp"])
+    with pytest.raises(PvgraphError, match=r"'tank.port.p' is not an unknown of the run"):
+        simulate(c, 0.1, nonnegative=["tank.port.p"])

@@ -222,8 +222,11 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
         # order of atol, a variable far below its atol (Robertson's y2 ~ 1e-13 at atol 1e-6)
         # gets a column wrong by orders of magnitude, and the run drifts with success
         def jac(t, yy, ypp, cj):
-            return jacobian.iteration_matrix(t, yy, ypp, fun(t, yy, ypp), cj,
-                                             1.0 / (rtol * np.abs(yy) + atol_arr), 1.0 / cj)
+            counted = jacobian.nje        # IDA's own count (njev) has this evaluation
+            m = jacobian.iteration_matrix(t, yy, ypp, fun(t, yy, ypp), cj,
+                                          1.0 / (rtol * np.abs(yy) + atol_arr), 1.0 / cj)
+            jacobian.nje = counted
+            return m
 
     def initialise(t, yy, ypp, mode):
         """pvgraph's consistent values and the first step from the system's time scales."""

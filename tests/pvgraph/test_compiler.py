@@ -195,8 +195,8 @@ def test_bad_parameters_name_the_field():
         LaminarOrifice(K=float("nan"))
     with pytest.raises(ParameterError, match=r"A = -1e-06.*greater than 0"):
         Orifice(A=-mm2(1))
-    with pytest.raises(ParameterError, match=r"Kx = 1.0: not a parameter of LaminarOrifice; it "
-                                             r"accepts K"):
+    with pytest.raises(ParameterError, match=r"Kx = 1.0: not a parameter of LaminarOrifice; "
+                                             r"did you mean 'K'\? it accepts K"):
         LaminarOrifice(Kx=1.0)
     with pytest.raises(ParameterError, match=r"\bK: required parameter not given"):
         LaminarOrifice()

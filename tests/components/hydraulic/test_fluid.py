@@ -247,7 +247,7 @@ def test_use_fluid_takes_fluid_properties_only_and_checks_each_value():
     with pytest.raises(ParameterError, match=r"beta = '5 bar' \(500000 Pa\): must be greater "
                                              r"than 1e\+06 Pa \(10 bar\)"):
         Fluid(beta="5 bar")
-    with pytest.raises(ParameterError, match=r"rhoo = 5: not a parameter of Fluid; it accepts"):
+    with pytest.raises(ParameterError, match=r"rhoo = 5: not a parameter of Fluid; did you mean 'rho'\? it accepts"):
         Fluid(rhoo=5)
 
 

@@ -1,5 +1,7 @@
 """Failures raise SolverError / InitializationError naming the time and the variables."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -245,3 +247,27 @@ def test_a_difference_column_lost_to_rounding_is_not_grown_into_an_overflow():
     assert "give start values nearer the solution" in str(got.value)
     sol = solve_dae(f, (0.0, 1.0), [5.0, 1.0], [0.0, 0.0], rtol=1e-8, atol=1e-10)
     assert sol.y[0, 1] == pytest.approx(np.log(5.0), rel=1e-8)
+
+
+def test_a_run_whose_steps_mostly_fail_the_error_test_is_warned_about():
+    # an index-2 pendulum (velocity constraint) with its multiplier in the error test: almost
+    # every step failed, the run ended far outside the tolerance and said nothing
+    from pvgraph.errors import PlausibilityWarning
+
+    def f(t, q, qp):
+        x, y, u, v, lam = q
+        return np.array([qp[0] - u, qp[1] - v, qp[2] + lam * x, qp[3] + lam * y + 9.81,
+                         x * u + y * v])
+    x0, y0, lam0 = np.sin(0.5), -np.cos(0.5), 9.81 * np.cos(0.5)
+    q0 = [x0, y0, 0.0, 0.0, lam0]
+    qp0 = [0.0, 0.0, -lam0 * x0, -lam0 * y0 - 9.81, 0.0]
+    with pytest.warns(PlausibilityWarning, match=r"of \d+ steps failed the local error test.*"
+                                                 r"suppress_alg=True"):
+        sol = solve_dae(f, (0.0, 0.2), q0, qp0, rtol=1e-6, atol=1e-6)
+    assert sol.stats["netf"] > 0.5 * sol.stats["nsteps"] > 500
+    # named and left out of the test, it runs in a few dozen steps without the warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PlausibilityWarning)
+        quick = solve_dae(f, (0.0, 0.2), q0, qp0, rtol=1e-6, atol=1e-6, algebraic=[4],
+                          suppress_alg=True)
+    assert quick.stats["nsteps"] < 200
