@@ -269,6 +269,16 @@ def _target(args) -> Target:
         for ext in registry.extensions.get(args.command, []):
             if ext.options is not None:
                 options.update(ext.options(args))
+    else:
+        given = [flag for dest, (flag, default) in
+                 getattr(args, "_application_options", {}).items()
+                 if getattr(args, dest, default) != default]
+        if given:
+            names = ", ".join(sorted(registry.load().circuits)[:4])
+            raise PvgraphError(f"{', '.join(given)} applies to the registered circuits "
+                               f"({names}, ...; pvgraph circuits lists them), not to "
+                               f"{args.target}: give your builder's arguments with "
+                               f"--option NAME=VALUE")
     generic = _parse_options(getattr(args, "option", None))
     target = load_target(args.target, {**options, **generic})
     if generic:
@@ -1035,8 +1045,14 @@ def build_parser() -> argparse.ArgumentParser:
     reg = registry.load()
     for name, ext_list in reg.extensions.items():
         if name in parsers:
+            before = {a.dest for a in parsers[name]._actions}
             for ext in ext_list:
                 ext.configure(parsers[name])
+            # the options applications add for their own circuits, with their defaults: one
+            # given for a user's circuit is told, not ignored (see _target)
+            parsers[name].set_defaults(_application_options={
+                a.dest: (a.option_strings[0], a.default) for a in parsers[name]._actions
+                if a.dest not in before and a.option_strings})
     for name, entry in reg.commands.items():
         if name in parsers or name in ("components", "circuits"):
             continue

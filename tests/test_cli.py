@@ -922,3 +922,10 @@ def test_a_builder_argument_no_option_gives_is_named(tmp_path, capsys):
     assert "the builder needs Q" in err and "--option Q=..." in err
     assert main(["simulate", f"{path}:build", "--t-end", "1", "--var", "node.port.p",
                  "--option", "Q=10 L/min"]) == 0
+
+
+def test_an_application_option_on_a_users_circuit_exits_2(rig_file, capsys):
+    # --law was accepted and ignored on a circuit of one's own (the same 67.76 bar either way)
+    assert main(["simulate", f"{rig_file}:build", "--t-end", "0.1", "--law", "turbulent"]) == 2
+    assert "--law applies to the registered circuits" in capsys.readouterr().err
+    assert main(["simulate", f"{rig_file}:build", "--t-end", "0.1"]) == 0
