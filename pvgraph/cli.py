@@ -436,8 +436,21 @@ def cmd_export(args) -> int:
 
 
 def cmd_components(args) -> int:
-    from .docgen import component_reference, library_modules
-    print(component_reference(library_modules()))
+    from .docgen import _component_section, _components_of, component_reference, library_modules
+    modules = library_modules()
+    if not args.names:
+        print(component_reference(modules))
+        return 0
+    classes = {cls.__name__: cls for m in modules for cls in _components_of(m)}
+    lower = {name.lower(): name for name in classes}
+    for name in args.names:
+        real = classes.get(name) and name or lower.get(name.lower())
+        if real is None:
+            close = difflib.get_close_matches(name, list(classes), n=3, cutoff=0.5)
+            hint = f"; did you mean {', '.join(map(repr, close))}?" if close else "."
+            raise PvgraphError(f"components: no component named {name!r}{hint} "
+                               f"pvgraph components lists them all")
+        print("\n".join(_component_section(classes[real])).rstrip() + "\n")
     return 0
 
 
@@ -1037,7 +1050,9 @@ def build_parser() -> argparse.ArgumentParser:
     lz.add_argument("--si", action="store_true", help="print SI units")
     lz.set_defaults(func=cmd_linearize)
 
-    c = sub.add_parser("components", help="list the component library")
+    c = sub.add_parser("components", help="list the component library (or the named "
+                                          "components: pvgraph components Orifice)")
+    c.add_argument("names", nargs="*", help="components to show (default: all)")
     c.set_defaults(func=cmd_components)
     r = sub.add_parser("circuits", help="list the circuits applications registered")
     r.set_defaults(func=cmd_circuits)

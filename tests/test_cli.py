@@ -929,3 +929,12 @@ def test_an_application_option_on_a_users_circuit_exits_2(rig_file, capsys):
     assert main(["simulate", f"{rig_file}:build", "--t-end", "0.1", "--law", "turbulent"]) == 2
     assert "--law applies to the registered circuits" in capsys.readouterr().err
     assert main(["simulate", f"{rig_file}:build", "--t-end", "0.1"]) == 0
+
+
+def test_components_shows_the_named_ones(capsys):
+    assert main(["components", "Orifice", "gasaccumulator"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("### Orifice") and "### GasAccumulator" in out
+    assert "### VolumeNode" not in out
+    assert main(["components", "Orifce"]) == 2
+    assert "did you mean 'Orifice'" in capsys.readouterr().err
