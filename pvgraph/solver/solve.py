@@ -336,6 +336,15 @@ def _consistent_interpolant(integ, fun, jacobian, lu, alg_mask, rtol, atol, coun
         return made["ok"]
 
     def solve(t, y, yp):
+        y_i, yp_i = y.copy(), yp.copy()
+        try:
+            return _solve(t, y, yp)
+        except (ArithmeticError, ValueError, SolverError):
+            # a residual that cannot be evaluated near the interpolated point (a user's
+            # function raising off its domain): the row stays as interpolated
+            return y_i, yp_i
+
+    def _solve(t, y, yp):
         ewt = 1.0 / (rtol * np.abs(y) + atol)
         r = fun(t, y, yp)
         counter["nre"] += 1
