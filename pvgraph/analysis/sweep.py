@@ -1185,28 +1185,33 @@ class CompiledRun:
     def validate(self, case: Mapping[str, Any]) -> None:
         """Raise :class:`SweepError` for case names the circuit (or the build) does not take
         and outputs it does not know, from ``case`` (one case: the names are the same for
-        all). Values are not judged here: a value a component refuses fails its case only.
-        Compiles in this process (its cache keeps the system for a serial sweep)."""
+        all). Values are not judged here: a value refused (by a component or the build) fails
+        its case only. Compiles in this process (its cache keeps the system for a serial
+        sweep)."""
         if self.build is not None:
+            import inspect
             try:
-                system = self.system(case)
-            except TypeError as exc:       # build(**case) with an argument it does not take
+                inspect.signature(self.build).bind(**case)
+            except TypeError as exc:       # an argument the build does not take
                 raise SweepError(f"CompiledRun: the case names {sorted(case)} do not fit "
                                  f"the build: {exc}") from None
-            except (ParameterError, PvgraphError):
-                return                     # this case's values: it fails on its own
+            except ValueError:             # no signature to read: the cases will tell
+                pass
+            try:
+                system = self.system(case)
+            except Exception:              # noqa: BLE001 (this case's values: it fails alone)
+                return
         else:
             self.prepare()
             system = self._cache()["base"]
-            unknown = [k for k in case if k not in system.parameters]
+            valid = self._circuit().parameters()    # every component field, structural too
+            unknown = [k for k in case if k not in valid]
             if unknown:
-                close = difflib.get_close_matches(unknown[0], list(system.parameters), n=3,
-                                                  cutoff=0.6)
+                close = difflib.get_close_matches(unknown[0], list(valid), n=3, cutoff=0.6)
                 raise SweepError(
                     f"CompiledRun: {system.name}: no parameter named {unknown[0]!r}"
                     + (f". Close matches: {close}" if close else "")
-                    + ". Case names are the circuit's parameters, <component path>.<field> "
-                    "(system.parameter_names lists the runtime ones)")
+                    + ". Case names are the circuit's parameters, <component path>.<field>")
         if self.reduce is not None:
             return
         for label, name in self.outputs.items():

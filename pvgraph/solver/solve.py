@@ -608,9 +608,13 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
                             newton_iterate_retry)
     integ.reinit(t0, y, yp, t_end, first_step)
     solved = {"nre": 0, "nlu": 0}
-    interpolate = integ.interpolate if error_mask is None else \
+    # rows and event conditions between steps with the algebraic variables solved; each with
+    # its own matrix, so that where the events are found does not hang on the rows asked for
+    # (t_eval chooses where the run is reported, never what it does). The state an action
+    # restarts from is the step's own interpolant, made consistent by the restart.
+    interpolate, locate = (integ.interpolate, integ.interpolate) if error_mask is None else (
         _consistent_interpolant(integ, fun, jacobian, LUSolver(lu_kind, pattern=lu_pattern),
-                                alg_mask, rtol, atol, solved)
+                                alg_mask, rtol, atol, solved) for _ in range(2))
 
     ts, ys, yps = [], [], []
     i_eval = 0
@@ -720,8 +724,8 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         hit = None
         if tracker is not None and not (c_events and integ.events_quiet()):
             g_new = tracker.evaluate(tn, integ.yy, integ.yp)
-            hit = _first_hit(tracker.crossings(t_old, tn, g_new, interpolate),
-                             event_list, interpolate, records, t_old, tn)
+            hit = _first_hit(tracker.crossings(t_old, tn, g_new, locate),
+                             event_list, integ.interpolate, records, t_old, tn)
             tracker.g = g_new
         if t_eval is not None:
             # an output time equal to the time of an action is reported after the action
@@ -794,10 +798,10 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     if tracker is not None and hit is None and end_state is None and integ.tn < t_end:
         # the last step ends within rounding of t_end: a zero exactly at t_end (a step at
         # t_step = t_end) lies beyond it, in (tn, t_end]
-        ye, ype = interpolate(t_end)
+        ye, ype = locate(t_end)
         g_end = tracker.evaluate(t_end, ye, ype)
-        end_hit = _first_hit(tracker.crossings(integ.tn, t_end, g_end, interpolate),
-                             event_list, interpolate, records, integ.tn, t_end)
+        end_hit = _first_hit(tracker.crossings(integ.tn, t_end, g_end, locate),
+                             event_list, integ.interpolate, records, integ.tn, t_end)
         if end_hit is not None and end_hit[2].terminal:
             message = (f"A terminal event ({end_hit[2].name!r}) occurred at t = "
                        f"{end_hit[0]:.9g}.")

@@ -581,3 +581,38 @@ def test_an_event_on_an_algebraic_signal_is_located_on_its_equation():
         sol = simulate(c, 7.0, rtol=rtol)
         times = [e.t for e in sol.events if e.name.endswith("cross")]
         assert len(times) == 1 and abs(times[0] - (t_star + 1e-3)) < tol, (rtol, times)
+
+
+def _latch(view):
+    view["on"] = 1.0
+
+
+def test_the_rows_asked_for_do_not_change_the_run():
+    # an event on the saturated output switches a mode that drives a state: where the event
+    # is found and the state the action restarts from must not hang on t_eval (solved rows
+    # shared one matrix with the event search, and the machine cycle's boom stalled 0.2 s
+    # with 200 rows a second)
+    from pvgraph import SignalIn, Variable
+    from pvgraph import expr as E
+    from pvgraph.component import der
+
+    class Latch(Component):
+        ports = {"u": SignalIn("watched")}
+        variables = {"z": Variable("1", 0.0, 1.0, "driven state")}
+        modes = {"on": 0.0}
+
+        def equations(self, v, p):
+            v.event("cross", v.u - 0.999, direction=-1, action=_latch)
+            return [der(v.z) - E.where(v.mode("on") > 0.5, 1.0, 0.0)]
+
+    c, pid, t_star = _saturated_pi()
+    c.add("latch", Latch())
+    c.connect(pid.y, "latch.u")
+    runs = [simulate(c, 7.0, rtol=1e-6, t_eval=t_eval)
+            for t_eval in (None, np.linspace(0.0, 7.0, 71), np.linspace(0.0, 7.0, 7001))]
+    times = [[e.t for e in r.events if e.name.endswith("cross")] for r in runs]
+    assert times[0] == times[1] == times[2] and len(times[0]) == 1
+    assert runs[0].stats["nsteps"] == runs[1].stats["nsteps"] == runs[2].stats["nsteps"]
+    finals = [r.final("latch.z") for r in runs]
+    assert finals[0] == finals[1] == finals[2]
+    assert finals[0] == pytest.approx(7.0 - (t_star + 1e-3), abs=1e-4)   # z = t - t_cross

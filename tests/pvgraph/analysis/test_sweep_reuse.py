@@ -212,3 +212,23 @@ def test_an_output_folder_that_cannot_be_made_is_a_sweep_error(tmp_path):
     run = CompiledRun(orifice_bench, outputs={"p": "node.port.p"}, steady=True)
     with pytest.raises(SweepError, match=r"out=.*the folder cannot be made"):
         sweep(run, grid({"orifice.A": [1e-6]}), backend="serial", out=blocker / "study")
+
+
+def test_structural_fields_and_a_first_case_refused_for_its_value_still_run():
+    # the up-front name check refused a valid structural field (orifice.dp_t is not a
+    # runtime parameter, yet with_params takes it by compiling again), and a build whose
+    # first case raised for its value aborted the whole sweep
+    run = CompiledRun(orifice_bench, outputs={"p": "node.port.p"}, steady=True, tol=1e-12)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RecompileWarning)
+        res = sweep(run, [{"orifice.dp_t": 1e4}, {"orifice.dp_t": 2e4}], backend="serial")
+    assert [r.status for r in res] == ["ok", "ok"]
+
+    def bench(A):
+        if A <= 0:
+            raise ValueError(f"A must be positive, got {A}")
+        return orifice_bench(A=A)
+    by_build = CompiledRun(build=bench, outputs={"p": "node.port.p"}, steady=True, tol=1e-12)
+    res = sweep(by_build, [{"A": -1.0}, {"A": 2e-6}], backend="serial")
+    assert [r.status for r in res] == ["failed", "ok"]
+    assert res[1].outputs["p"] == pytest.approx(analytic({}, Q=1e-4, A=2e-6), rel=1e-9)
