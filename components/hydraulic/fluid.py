@@ -243,7 +243,10 @@ def cavitation_warning(v, p, fp: FluidCompliance, what: str, mode: str = "cavita
     """Declare the event that warns once when gauge pressure ``p`` nears the vapour pressure.
 
     The warning names the chamber (``v``'s component path); it fires when the absolute pressure
-    falls to ``p_vap + dp_cav``. Components using it declare the discrete mode ``mode``.
+    falls to ``p_vap + dp_cav``. Components using it declare the discrete mode ``mode``. A
+    second event, ``cavity`` (``cavity_A`` for the mode ``cavitated_A``), marks every
+    crossing of that pressure, both ways: the solver restarts there, where the compliance
+    changes by orders of magnitude.
     """
     path = v._prefix
     done = v.mode(mode)
@@ -263,3 +266,13 @@ def cavitation_warning(v, p, fp: FluidCompliance, what: str, mode: str = "cavita
             f"ahead of its supply, a motor overrunning) or add a make-up (anti-cavitation) "
             f"check valve from tank."), stacklevel=outside_stacklevel(LIBRARY))
     v.event("cavitation", condition, direction=-1, action=action)
+    # the compliance changes by orders of magnitude where the cavity opens and closes: a
+    # restart there (order 1, a fresh iteration matrix) keeps Newton from accepting, with
+    # the matrix of the other side, a point that does not satisfy the chamber's equation
+    # (oil made from nothing as the column rejoins, 400 bar from 33)
+    v.event("cavity" + mode[len("cavitated"):], p + fp.p_atm - fp.p_vap - fp.dp_cav,
+            direction=0, action=_restart)
+
+
+def _restart(modes):
+    """An event action that changes nothing: the solver restarts at the event."""

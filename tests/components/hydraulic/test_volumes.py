@@ -1,11 +1,12 @@
 """VolumeNode and PistonChamber (report A.5, eqs. 4.14, 4.49, 4.52, 4.93-4.94)."""
 
 import math
+import warnings
 
 import numpy as np
 import pytest
 
-from pvgraph.components.hydraulic import FlowSource, PistonChamber, Plug, VolumeNode
+from pvgraph.components.hydraulic import FlowSource, PistonChamber, Plug, Tank, VolumeNode
 from pvgraph.components.hydraulic.volumes import FluidCompliance, effective_bulk_modulus
 from hydraulic_helpers import VelocityDrive, jacobian_fd_error, requires_solver, value, vector
 from pvgraph.circuit import Circuit
@@ -103,3 +104,40 @@ def test_closed_chamber_compressed_by_a_position_ramp(side):
     np.testing.assert_allclose(sol["dut.F"], side * A_M * expected, rtol=1e-5)
     assert expected[-1] - p0 > bar(100)
     assert math.isclose(sol.final("dut.V"), V[-1], rel_tol=1e-6)
+
+
+def _sine_fed_node():
+    """A 1 L node fed 1e-4 sin(2 pi 5 t) m^3/s, bled by a laminar restriction to tank: it
+    empties to the vapour pressure on every negative half wave and refills. Oil balance:
+    the pressure never exceeds beta/V times the oil fed since the node was last empty,
+    about 33 bar (32.96 on every converged run)."""
+    from pvgraph.components import FlowInput, LaminarOrifice, Sine
+    c = Circuit("sine_fed")
+    c.add("sig", Sine(amplitude=1e-4, f=5.0))
+    c.add("src", FlowInput())
+    c.add("node", VolumeNode(V=1e-3, beta=7e8))
+    c.add("orf", LaminarOrifice(K=1e-11))
+    c.add("tank", Tank())
+    c.connect("sig.y", "src.u")
+    c.connect("src.port", "node.port", "orf.a")
+    c.connect("orf.b", "tank.port")
+    return c
+
+
+@pytest.mark.parametrize("solver, options", [("pvgraph", {}),
+                                             ("pvgraph", {"suppress_alg": False}),
+                                             ("ida", {})])
+def test_a_node_that_empties_and_refills_makes_no_oil(solver, options):
+    # the compliance falls by orders of magnitude where the cavity closes; Newton kept the
+    # matrix of the cavitated side and took points off the node's equation: 395 bar (IDA)
+    # and 424 bar (suppress_alg=False) at rtol 1e-6, from oil made out of nothing. The
+    # cavity's edges are events now: the solver restarts there
+    if solver == "ida":
+        pytest.importorskip("sksundae")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sol = simulate(_sine_fed_node(), 1.0, rtol=1e-6, solver=solver, **options)
+    p = sol["node.port.p"]
+    assert np.max(p) < 33.0e5
+    assert np.max(p) > 32.9e5
+    assert sol.final("node.port.p") == pytest.approx(-0.993e5, abs=0.01e5)   # empty at t = 1
