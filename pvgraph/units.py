@@ -204,7 +204,7 @@ _KINDS = {
 
 _NUMBER_ONLY = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*(.*?)\s*$")
 #: digits in groups of three split by a space (ISO 80000-1: "1 500 kg", "15 000 N/m")
-_GROUPED = re.compile(r"^(\s*[+-]?\d{1,3}(?:[ \u2009\u202f]\d{3})+)(?=[.,eE\s]|$)")
+_GROUPED = re.compile(r"^(\s*[+-]?\d{1,3}(?:[ \u2009\u202f]\d{3})+)(?=\D|$)")
 
 
 class _Number:
@@ -308,6 +308,8 @@ def _parse(text: str) -> tuple[float, tuple, int]:
         src = src.replace(glyph, spelled)
     if src in ("", "-", "1"):
         return 1.0, _ONE, 0
+    if src.startswith("/"):                         # "1500/min": per minute
+        src = "1" + src
     tokens, pos = [], 0
     while pos < len(src):
         m = _TOKEN.match(src, pos)
@@ -353,6 +355,11 @@ def _parse(text: str) -> tuple[float, tuple, int]:
                 f, d, a = f**e, tuple(x * e for x in d), a * e
             else:
                 f, d, a = _symbol(tok)
+            nxt = peek()
+            if nxt is not None and nxt.startswith("-") and nxt[1:].isdigit():
+                take()                              # "min-1", "m-2": a power, ^ lost
+                e = int(nxt)
+                f, d, a = f**e, tuple(x * e for x in d), a * e
         elif tok == "1" and peek() == "/":         # "1/min", "1/s"
             f, d, a = 1.0, _ONE, 0
         elif tok.lstrip("+-").isdigit():

@@ -65,7 +65,7 @@ from pvgraph.laws import orifice_flow
 
 from ..mechanical.laws import onset_indicator, onset_penetration
 from .check_valve import smoothstep_ramp
-from .fluid import P_ATM, rho_field
+from .fluid import rho_field
 
 __all__ = ["ReliefValve", "DynamicReliefValve", "PilotReliefValve", "PressureReducingValve",
            "SequenceValve", "CounterbalanceValve", "relief_opening"]
@@ -261,8 +261,8 @@ class ReducingValveParams(SettingParams):
                            description="Area from the outlet to the drain (the spring "
                                        "chamber's, to tank) once the outlet is above the "
                                        "setting; 0: none [m^2]")
-    p_drain: float = Field(P_ATM, ge=0.0, le=1e7,
-                           description="Pressure of the drain (tank, absolute) [Pa]")
+    p_drain: float = Field(0.0, ge=-1e5, le=1e7,
+                           description="Pressure of the drain (tank, gauge) [Pa]")
 
 
 class PressureReducingValve(Component):
@@ -277,7 +277,7 @@ class PressureReducingValve(Component):
     drain takes the leak, ``A_drain ramp sqrt(A.p - p_drain) = A_leak sqrt(P.p - A.p)``. With
     the defaults (``A_drain = 100 A_leak``) that is within ``0.1 dp_open`` of the setting
     while ``P.p - p_set < 7.8 (p_set - p_drain)`` (a 50 bar setting: supplies up to 430 bar;
-    200 bar gives 50.39 bar) and within ``dp_open`` up to ``10^4 (p_set - p_drain)``. The
+    200 bar gives 50.389 bar) and within ``dp_open`` up to ``10^4 (p_set - p_drain)``. The
     drain flow (observed ``q_drain``) leaves the circuit; it is of the order of the leak
     (a few mL/min).
     """

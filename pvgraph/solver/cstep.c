@@ -605,22 +605,6 @@ int pv_step(pv_state *s)
     return STEP_OK;
 }
 
-/* LUSolver.solve of x in place with the last factors of the step (a consistent output row,
-   see solve._consistent_interpolant): 0, or 1 where the factors are the Python code's
-   (SuperLU) */
-int pv_solve_factored(const pv_state *s, double *x)
-{
-    if (s->lu_c) {
-        ((clu_solve_fn) s->lu_solve)(s->lu_ctx, x);
-        return 0;
-    }
-    if (s->lu == NULL) return 1;
-    int n = (int) s->n, one = 1, info = 0;
-    char trans = 'N';
-    ((dgetrs_fn) s->dgetrs)(&trans, &n, &one, s->lu, &n, s->piv, x, &n, &info);
-    return info != 0;
-}
-
 /* result.interpolate: the interpolating polynomial of the last step and its derivative at t,
    np.dot(cy, phi[:kord+1]) and np.dot(cyp, phi[:kord+1]) (dgemv: kord + 1 >= 2 rows) */
 void pv_interpolate(const pv_state *s, double t, double *y, double *yp)

@@ -110,11 +110,9 @@ _SOLVE = ctypes.CFUNCTYPE(ctypes.c_int)
 class _Kernel:
     """The compiled step and the BLAS / LAPACK routines it calls."""
 
-    def __init__(self, step, interp, advance, ddot, dgemv, daxpy, dgetrs, dgetrf, blas64,
-                 solve_factored=None):
+    def __init__(self, step, interp, advance, ddot, dgemv, daxpy, dgetrs, dgetrf, blas64):
         self.step = step
         self.interp = interp
-        self.solve_factored = solve_factored
         self.advance = advance
         self.ddot, self.dgemv, self.daxpy, self.dgetrs = ddot, dgemv, daxpy, dgetrs
         self.dgetrf = dgetrf
@@ -172,12 +170,9 @@ def _load():
     advance = lib.pv_advance
     advance.argtypes = [ctypes.POINTER(_State), ctypes.POINTER(_Run)]
     advance.restype = ctypes.c_int
-    solve_factored = lib.pv_solve_factored
-    solve_factored.argtypes = [ctypes.POINTER(_State), _vp]
-    solve_factored.restype = ctypes.c_int
     k = _Kernel(step, interp, advance, *_numpy_blas()[:3], _scipy_lapack("dgetrs"),
                 _scipy_lapack("dgetrf"),
-                _numpy_blas()[3], solve_factored)
+                _numpy_blas()[3])
     _self_check(k)
     return k
 
@@ -450,14 +445,6 @@ class CStepIntegrator(IDAIntegrator):
         except BaseException as exc:       # noqa: BLE001 - re-raised by step()
             self._exc = exc
             return 3
-
-    def solve_factored(self, b):
-        """``lu.solve(b)`` with the factors the step used last, wherever they were made (in
-        C or by the Python code); a new array."""
-        x = np.array(b, dtype=float)
-        if self._kernel.solve_factored(self._sref, x.ctypes.data) == 0:
-            return x
-        return self.lu.solve(b)
 
     def interpolate(self, t):
         """(y, y') at t in the last step (``result.interpolate``, in C)."""

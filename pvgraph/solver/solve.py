@@ -314,10 +314,15 @@ def _consistent_interpolant(integ, fun, jacobian, lu, alg_mask, rtol, atol, coun
     rates, solved from ``F(t, y, y') = 0``, as IDA's consistent initial conditions are found
     (``IDA_YA_YDP_INIT``): Newton with the matrix of columns ``dF/dy_a`` (algebraic) and
     ``dF/dy'_d`` (states), factorised in ``lu`` and kept while it contracts fast (made again
-    at the row where it does not). A row whose first correction is small (most rows: one
-    residual and one solve) stays as interpolated; one whose iteration does not contract on a
-    fresh matrix stays as interpolated too. What is decided depends on the rows only, so the
-    Python and C steps (rows made one step at a time or in the loop in C) agree bit for bit.
+    at the row where it does not). The solved values are kept only where they are the better
+    ones: an algebraic variable whose solved value would carry more than
+    ``AMPLIFICATION_MAX`` of its tolerance units from one unit of error in the states (a
+    small chamber's port flow, the difference of two orifice flows) keeps its interpolated
+    value, and so do the states' rates. A row whose first correction is small (one residual
+    and one solve) stays as interpolated; one whose iteration does not contract on a fresh
+    matrix stays as interpolated too. What is decided depends on the rows only, so the
+    Python and C steps (rows made one step at a time or in the loop in C) agree bit for bit;
+    the event search has its own instance, so the rows asked for do not move the events.
     ``counter`` counts the residual evaluations (``"nre"``) and the matrices (``"nlu"``).
     """
     alg = np.flatnonzero(alg_mask)
@@ -336,8 +341,10 @@ def _consistent_interpolant(integ, fun, jacobian, lu, alg_mask, rtol, atol, coun
     n_all = alg_mask.size
 
     def size(d, ewt):
-        """The algebraic part of a correction, weighted RMS in tolerance units."""
-        v = d[alg] * ewt[alg]
+        """The part of a correction on the algebraic variables kept solved, weighted RMS in
+        tolerance units."""
+        keep = alg[trusted["a"]]
+        v = d[keep] * ewt[keep]
         return math.sqrt(float(np.dot(v, v)) * inv_n)
 
     def refresh(t, y, yp, r):
@@ -369,6 +376,8 @@ def _consistent_interpolant(integ, fun, jacobian, lu, alg_mask, rtol, atol, coun
             return y_i, yp_i
 
     def _solve(t, y, yp):
+        if made["ok"] is not None and not trusted["a"].any():
+            return y, yp        # every algebraic variable keeps its interpolated value
         ewt = 1.0 / (rtol * np.abs(y) + atol)
         r = fun(t, y, yp)
         counter["nre"] += 1

@@ -321,3 +321,11 @@ def test_unit_errors_name_the_field_once_and_suggest_minutes():
     for text in ("10 L/mn", "10 L/Min"):
         with pytest.raises(ParameterError, match="did you mean 'min'"):
             FlowSource(Q=text)
+
+
+@pytest.mark.parametrize("text, unit, si", [
+    ("1 500/min", "1/s", 25.0), ("1500/min", "1/s", 25.0), ("1 500%", "1", 15.0),
+    ("1500 min-1", "1/s", 25.0), ("3 m-2", "1/m^2", 3.0), ("5 N.m-1", "N/m", 5.0),
+])
+def test_per_units_and_powers_written_without_a_caret(text, unit, si):
+    assert to_unit(text, unit) == pytest.approx(si, rel=1e-12)
