@@ -270,9 +270,11 @@ def _target(args) -> Target:
             if ext.options is not None:
                 options.update(ext.options(args))
     else:
+        typed = getattr(args, "_argv", [])
         given = [flag for dest, (flag, default) in
                  getattr(args, "_application_options", {}).items()
-                 if getattr(args, dest, default) != default]
+                 if getattr(args, dest, default) != default
+                 or any(t == flag or t.startswith(flag + "=") for t in typed)]
         if given:
             names = ", ".join(sorted(registry.load().circuits)[:4])
             raise PvgraphError(f"{', '.join(given)} applies to the registered circuits "
@@ -1095,6 +1097,7 @@ def main(argv=None) -> int:
         print(f"pvgraph: error: {exc}", file=sys.stderr)
         return 2
     args = parser.parse_args(argv)
+    args._argv = list(sys.argv[1:] if argv is None else argv)   # the options as typed
     before = os.environ.get("PVGRAPH_BACKEND")
     if args.eval is not None:   # in the environment, so worker processes see it too
         os.environ["PVGRAPH_BACKEND"] = args.eval

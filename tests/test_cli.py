@@ -928,6 +928,9 @@ def test_an_application_option_on_a_users_circuit_exits_2(rig_file, capsys):
     # --law was accepted and ignored on a circuit of one's own (the same 67.76 bar either way)
     assert main(["simulate", f"{rig_file}:build", "--t-end", "0.1", "--law", "turbulent"]) == 2
     assert "--law applies to the registered circuits" in capsys.readouterr().err
+    # typed with its default value it did nothing all the same
+    assert main(["simulate", f"{rig_file}:build", "--t-end", "0.1", "--preset=tuned"]) == 2
+    assert "--preset applies to the registered circuits" in capsys.readouterr().err
     assert main(["simulate", f"{rig_file}:build", "--t-end", "0.1"]) == 0
 
 

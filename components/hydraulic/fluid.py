@@ -240,17 +240,25 @@ class CavitationWarning(PlausibilityWarning):
 
 
 def cavitation_warning(v, p, fp: FluidCompliance, what: str, mode: str = "cavitated"):
-    """Declare the event that warns once when gauge pressure ``p`` nears the vapour pressure.
+    """Declare the events of a chamber's cavity at gauge pressure ``p``.
 
-    The warning names the chamber (``v``'s component path); it fires when the absolute pressure
-    falls to ``p_vap + dp_cav``. Components using it declare the discrete mode ``mode``. A
-    second event, ``cavity`` (``cavity_A`` for the mode ``cavitated_A``), marks every
-    crossing of that pressure, both ways: the solver restarts there, where the compliance
-    changes by orders of magnitude.
+    Components using it declare the discrete mode ``mode``: 0 before the first cavity, 1 while
+    a cavity is open, 2 after it closed. The event ``cavity`` (``cavity_A`` for the mode
+    ``cavitated_A``) opens the cavity where the absolute pressure falls to ``p_vap + dp_cav``
+    and closes it where it rises again past ``p_vap + 2 dp_cav`` (a band, so that a pressure
+    resting at the threshold does not switch at every wiggle): the solver restarts at each
+    (order 1, a fresh iteration matrix), where the compliance changes by orders of magnitude.
+    With the matrix of the other side, Newton took points that do not satisfy the chamber's
+    equation: oil made from nothing as the column rejoins, 400 bar from 33. The event
+    ``cavitation`` warns, once, naming the chamber (``v``'s component path).
     """
     path = v._prefix
-    done = v.mode(mode)
-    condition = E.where(done < 0.5, p + fp.p_atm - fp.p_vap - fp.dp_cav, 1.0)
+    state = v.mode(mode)
+    p_abs = p + fp.p_atm - fp.p_vap
+    is_open = E.where(state > 0.5, 1.0, 0.0) * E.where(state < 1.5, 1.0, 0.0)
+    edge = E.where(is_open > 0.5, p_abs - 2.0 * fp.dp_cav, p_abs - fp.dp_cav)
+    v.event("cavity" + mode[len("cavitated"):], edge, direction=0, action=_toggle(mode))
+    condition = E.where(state < 0.5, p_abs - fp.dp_cav, 1.0)
 
     # p_vap is a runtime parameter symbol while tracing: name it rather than freeze a number
     vapour = (f"{fp.p_vap:g} Pa absolute" if isinstance(fp.p_vap, (int, float))
@@ -266,13 +274,13 @@ def cavitation_warning(v, p, fp: FluidCompliance, what: str, mode: str = "cavita
             f"ahead of its supply, a motor overrunning) or add a make-up (anti-cavitation) "
             f"check valve from tank."), stacklevel=outside_stacklevel(LIBRARY))
     v.event("cavitation", condition, direction=-1, action=action)
-    # the compliance changes by orders of magnitude where the cavity opens and closes: a
-    # restart there (order 1, a fresh iteration matrix) keeps Newton from accepting, with
-    # the matrix of the other side, a point that does not satisfy the chamber's equation
-    # (oil made from nothing as the column rejoins, 400 bar from 33)
-    v.event("cavity" + mode[len("cavitated"):], p + fp.p_atm - fp.p_vap - fp.dp_cav,
-            direction=0, action=_restart)
 
 
-def _restart(modes):
-    """An event action that changes nothing: the solver restarts at the event."""
+def _toggle(mode):
+    """The action of a cavity's edge: open (1) from before or after a cavity, closed (2) from
+    open. It is declared before the warning, whose action (at the first opening, the same
+    instant) leaves the mode open."""
+    def act(modes):
+        modes[mode] = 2.0 if modes[mode] == 1.0 else 1.0
+    act.__name__ = f"toggle_{mode}"
+    return act
