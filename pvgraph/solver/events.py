@@ -170,7 +170,7 @@ class EventTracker:
                                 f"{np.shape(value)}); an event function returns one number "
                                 f"(give several events as a list of functions)") from None
 
-    def reset(self, t, y, yp, unknown=(), crossed=None):
+    def reset(self, t, y, yp, unknown=(), crossed=None, located=None):
         """Start tracking at t; events in ``unknown`` get their sign from the next step.
 
         ``crossed``: ``{index: direction}`` of the events that fired at ``t``. Such an event
@@ -179,7 +179,12 @@ class EventTracker:
         the time tolerance of the location, a few ulps of t): a crossing back, as a relay's ``der(x) = -sign(x)`` makes it, is then seen,
         and a step's ``t - t_step`` a few ulps short of zero does not fire twice. A value of
         the other sign beyond rounding is a function the action switched (a condition a mode
-        changes): its sign comes from the next step.
+        changes): its sign comes from the next step. ``located``: ``(t, y, y')`` where the
+        events were found, before the actions and the restart; an event whose function is
+        still at its zero there (within rounding) after the actions was not switched by them,
+        so a value of the other sign now comes from the restart re-solving the algebraic
+        variables (the crossing was found on their interpolant): it stays crossed, or it
+        would fire again for the same crossing.
         """
         last = self._last
         self.g = self.evaluate(t, y, yp)
@@ -193,8 +198,20 @@ class EventTracker:
                 continue
             elif last is not None and abs(g) <= last[0] * abs(last[2][i] - last[1][i]):
                 self.g[i] = direction * AFTER_CROSSING
+            elif last is not None and located is not None and \
+                    abs(self._value_at(i, located)) <= last[0] * abs(last[2][i] - last[1][i]):
+                self.g[i] = direction * AFTER_CROSSING
             else:
                 self.g[i] = 0.0
+
+    def _value_at(self, i, point):
+        """Event ``i``'s function at ``point = (t, y, y')`` (the modes as they are now)."""
+        t, y, yp = point
+        self.nroot += 1
+        if self._vector is not None:
+            g_all, idx = self._vector
+            return float(np.asarray(g_all(t, y, yp), dtype=float)[idx][i])
+        return float(self.events[i].fun(t, y, yp))
 
     def crossings(self, t_old, t_new, g_new, interp):
         """Return the crossings in (t_old, t_new] as sorted (t, index, direction) tuples.

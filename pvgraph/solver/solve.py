@@ -798,6 +798,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             if ev.terminal:
                 message = f"A terminal event ({ev.name!r}) occurred at t = {te:.9g}."
                 break
+            located = (ye, ype)
             ye, ype = _apply_actions(fired, event_list, te, ye, ype, initialise, restart_mode)
             if t_eval is None:
                 ts.append(te)
@@ -822,7 +823,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
                     break
                 if rec.index in fired:
                     crossed.setdefault(rec.index, rec.direction)   # the latest crossing
-            tracker.reset(te, ye, ype, crossed=crossed)
+            tracker.reset(te, ye, ype, crossed=crossed, located=(te,) + located)
             chatter = _chattering(chatter, te, fired, event_list, integ.hused)
             continue
         if t_end - tn <= END_FUZZ * UROUND * (abs(tn) + abs(integ.hused)):
