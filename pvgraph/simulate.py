@@ -334,10 +334,12 @@ def simulate(target, t_end: float, *, t_start: float = 0.0, rtol: float = 1e-6,
     algebraic parts is then followed at the steps the states need, so where ``max_step`` is
     not given, a periodic source bounds it (``Sine``: a tenth of its period; a 200 Hz
     pressure through a check valve into a volume had whole openings stepped over, 2.3 bar
-    low at rtol 1e-4); give ``max_step`` or ``suppress_alg=False`` otherwise. Between steps
-    (rows at ``t_eval``, event times) the algebraic variables are solved from the equations at
-    the interpolated states, not interpolated: a saturated controller output or a valve flow
-    stays on its own equation across a kink inside a step.
+    low at rtol 1e-4); give ``max_step`` or ``suppress_alg=False`` otherwise. Events between
+    steps are located with the algebraic variables solved from the equations at the
+    interpolated states (a threshold on a saturated controller output fires on time); rows at
+    ``t_eval`` are the steps' interpolant, which keeps every node's flow balance, so an
+    algebraic variable with a kink inside a step can be off its own equation there (a
+    saturated PI output 1e-3 at rtol 1e-6): ask for every step, or a tighter rtol, there.
     """
     if not isinstance(target, (Circuit, System)):
         raise PvgraphError(f"simulate() takes a Circuit or a System, got {type(target).__name__}")

@@ -243,7 +243,8 @@ def cavitation_warning(v, p, fp: FluidCompliance, what: str, mode: str = "cavita
     """Declare the events of a chamber's cavity at gauge pressure ``p``.
 
     Components using it declare the discrete mode ``mode``: 0 before the first cavity, 1 while
-    a cavity is open, 2 after it closed. The event ``cavity`` (``cavity_A`` for the mode
+    a cavity is open, 2 after it closed, 3 closed without a warning yet (a chamber that
+    started inside the cavity and left it). The event ``cavity`` (``cavity_A`` for the mode
     ``cavitated_A``) opens the cavity where the absolute pressure falls to ``p_vap + dp_cav``
     and closes it where it rises again past ``p_vap + 2 dp_cav`` (a band, so that a pressure
     resting at the threshold does not switch at every wiggle): the solver restarts at each
@@ -258,7 +259,8 @@ def cavitation_warning(v, p, fp: FluidCompliance, what: str, mode: str = "cavita
     is_open = E.where(state > 0.5, 1.0, 0.0) * E.where(state < 1.5, 1.0, 0.0)
     edge = E.where(is_open > 0.5, p_abs - 2.0 * fp.dp_cav, p_abs - fp.dp_cav)
     v.event("cavity" + mode[len("cavitated"):], edge, direction=0, action=_toggle(mode))
-    condition = E.where(state < 0.5, p_abs - fp.dp_cav, 1.0)
+    unwarned = E.where(state < 0.5, 1.0, 0.0) + E.where(state > 2.5, 1.0, 0.0)
+    condition = E.where(unwarned > 0.5, p_abs - fp.dp_cav, 1.0)
 
     # p_vap is a runtime parameter symbol while tracing: name it rather than freeze a number
     vapour = (f"{fp.p_vap:g} Pa absolute" if isinstance(fp.p_vap, (int, float))
@@ -277,10 +279,11 @@ def cavitation_warning(v, p, fp: FluidCompliance, what: str, mode: str = "cavita
 
 
 def _toggle(mode):
-    """The action of a cavity's edge: open (1) from before or after a cavity, closed (2) from
-    open. It is declared before the warning, whose action (at the first opening, the same
-    instant) leaves the mode open."""
+    """The action of a cavity's edge: closed (2) from open (1); open from closed (2, 3);
+    from before any cavity (0) "closed, not warned" (3), which the warning's action (at a
+    first opening, the same instant: it is declared after this one) makes open (1)."""
     def act(modes):
-        modes[mode] = 2.0 if modes[mode] == 1.0 else 1.0
+        state = modes[mode]
+        modes[mode] = 2.0 if state == 1.0 else (3.0 if state == 0.0 else 1.0)
     act.__name__ = f"toggle_{mode}"
     return act

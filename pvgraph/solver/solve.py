@@ -143,12 +143,12 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
     events : list of Event or scipy-style callables, optional
         Zero crossings to locate; see ``Event``.
     t_eval : array_like, optional
-        Sorted output times inside t_span, interpolated from the BDF history. With
-        ``suppress_alg`` the algebraic variables are not error-controlled, so at these
-        times (and where events are located) they are solved from the equations at the
-        interpolated states rather than interpolated (``stats["nlu_rows"]``: the matrices
-        that took). By default every internal step (and both sides of every event with an
-        action) is output.
+        Sorted output times inside t_span, interpolated from the BDF history (which keeps
+        the equations' linear relations on every row). With ``suppress_alg`` the algebraic
+        variables are not error-controlled, so where events are located between steps they
+        are solved from the equations at the interpolated states, where that is the better
+        value (``stats["nlu_rows"]``: the matrices that took). By default every internal
+        step (and both sides of every event with an action) is output.
     max_step : float, optional
         Largest step size.
     first_step : float, optional
@@ -165,9 +165,7 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
         Variable names for error messages.
     dense_output : bool
         Provide ``result.sol(t)``: the steps' interpolating polynomials, kept after the run,
-        for every variable. With ``suppress_alg`` its algebraic values are interpolated,
-        not solved as the rows at ``t_eval`` are (they can differ by more than the
-        tolerance across a kink): ask for ``t_eval`` where the algebraic values matter.
+        for every variable, as the rows at ``t_eval``.
     nonnegative : array_like of int or bool, optional
         Variables that must stay >= 0 (concentrations, amounts), as IDA's constraints:
         a step that makes one negative is retried shorter, and the run stops with
@@ -304,12 +302,13 @@ AMPLIFICATION_MAX = 3.0
 
 
 def _consistent_interpolant(integ, fun, jacobian, lu, alg_mask, rtol, atol, counter):
-    """The step's interpolant with the algebraic variables solved at each time asked.
+    """The step's interpolant with the algebraic variables solved at each time asked (for
+    the functions of events between steps).
 
     With the algebraic variables out of the error test (``suppress_alg``) the BDF interpolant
     of a step is error-controlled for the states only: across a kink of an algebraic variable
     (a saturation, a valve closing) the interpolated value can be far from the equations at
-    the interpolated states. Output rows and the functions of events are taken at
+    the interpolated states. Event functions are taken at
     ``(y, y')`` with the states interpolated and the algebraic variables, with the states'
     rates, solved from ``F(t, y, y') = 0``, as IDA's consistent initial conditions are found
     (``IDA_YA_YDP_INIT``): Newton with the matrix of columns ``dF/dy_a`` (algebraic) and
@@ -652,13 +651,17 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
                             newton_iterate_retry)
     integ.reinit(t0, y, yp, t_end, first_step)
     solved = {"nre": 0, "nlu": 0}
-    # rows and event conditions between steps with the algebraic variables solved; each with
-    # its own matrix, so that where the events are found does not hang on the rows asked for
-    # (t_eval chooses where the run is reported, never what it does). The state an action
-    # restarts from is the step's own interpolant, made consistent by the restart.
-    interpolate, locate = (integ.interpolate, integ.interpolate) if error_mask is None else (
-        _consistent_interpolant(integ, fun, jacobian, LUSolver(lu_kind, pattern=lu_pattern),
-                                alg_mask, rtol, atol, solved) for _ in range(2))
+    # output rows between steps: the step's interpolant, which keeps every linear relation of
+    # the equations (a node's flows sum to zero on every row; solving some of the algebraic
+    # variables and not others broke that by 44 tolerance units). Event conditions between
+    # steps: with the algebraic variables solved where the equations determine them better
+    # than their interpolant (a threshold on a saturated output fired 1.1 ms early), with a
+    # matrix of their own, so t_eval never changes the run. The state an action restarts
+    # from is the step's interpolant, made consistent by the restart.
+    interpolate = integ.interpolate
+    locate = integ.interpolate if error_mask is None else _consistent_interpolant(
+        integ, fun, jacobian, LUSolver(lu_kind, pattern=lu_pattern), alg_mask, rtol, atol,
+        solved)
 
     ts, ys, yps = [], [], []
     i_eval = 0
@@ -713,15 +716,8 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             else:
                 i_eval = run.i_eval
                 ts.extend(t_eval[i_from:i_eval])
-                if not hasattr(interpolate, "solve"):
-                    ys.extend(run.y_rows[i_from:i_eval])
-                    yps.extend(run.yp_rows[i_from:i_eval])
-                else:
-                    for k in range(i_from, i_eval):
-                        yv, ypv = interpolate.solve(t_eval[k], run.y_rows[k].copy(),
-                                                    run.yp_rows[k].copy())
-                        ys.append(yv)
-                        yps.append(ypv)
+                ys.extend(run.y_rows[i_from:i_eval])
+                yps.extend(run.yp_rows[i_from:i_eval])
             if status == ADV_END:
                 hit = None
                 break
