@@ -546,11 +546,8 @@ def _saturated_pi():
     return c, pid, t_star
 
 
-@pytest.mark.parametrize("c_step", [False, None])
-def test_output_rows_keep_every_nodes_flow_balance(c_step):
-    # rows at t_eval are the steps' interpolant, which keeps the linear equations: a node's
-    # flows sum to zero on every row (rows with some algebraic variables solved and others
-    # interpolated broke it by 44 tolerance units); the saturated PI's state is on time too
+def _small_chamber_behind_a_big_one():
+    """pump 10 L/min -> 500 cm^3 -> 5 mm^2 orifice -> 0.01 cm^3 -> 1.2 mm^2 orifice -> tank."""
     c = Circuit("chain")
     c.add("pump", FlowSource(Q=lpm(10)))
     c.add("big", VolumeNode(V=litre(0.5)))
@@ -561,6 +558,15 @@ def test_output_rows_keep_every_nodes_flow_balance(c_step):
     c.connect("pump.port", "big.port", "o1.a")
     c.connect("o1.b", "small.port", "o2.a")
     c.connect("o2.b", "tank.port")
+    return c
+
+
+@pytest.mark.parametrize("c_step", [False, None])
+def test_output_rows_keep_every_nodes_flow_balance(c_step):
+    # rows at t_eval are the steps' interpolant, which keeps the linear equations: a node's
+    # flows sum to zero on every row (rows with some algebraic variables solved and others
+    # interpolated broke it by 44 tolerance units); the saturated PI's state is on time too
+    c = _small_chamber_behind_a_big_one()
     sol = simulate(c, 0.5, rtol=1e-6, t_eval=np.linspace(0.0, 0.5, 1001), c_step=c_step)
     balance = sol["o1.b.q"] + sol["small.port.q"] + sol["o2.a.q"]
     assert np.max(np.abs(balance)) < 1e-15 * np.max(np.abs(sol["o1.b.q"])) * 1e3
@@ -635,16 +641,7 @@ def test_a_small_chambers_port_flow_keeps_its_interpolated_value():
     # chamber's port flow (V/beta dp/dt, about 1e-9 m^3/s) solved from its interpolated
     # pressure is the difference of two orifice flows of 1.5e-4 m^3/s, 1000 tolerance units
     # off a tight run; interpolated it is within its tolerance
-    c = Circuit("chain")
-    c.add("pump", FlowSource(Q=lpm(10)))
-    c.add("big", VolumeNode(V=litre(0.5)))
-    c.add("o1", Orifice(A=mm2(5.0), dp_t=1e4))
-    c.add("small", VolumeNode(V=litre(1e-5)))
-    c.add("o2", Orifice(A=mm2(1.2), dp_t=1e4))
-    c.add("tank", Tank())
-    c.connect("pump.port", "big.port", "o1.a")
-    c.connect("o1.b", "small.port", "o2.a")
-    c.connect("o2.b", "tank.port")
+    c = _small_chamber_behind_a_big_one()
     s = c.compile()
     t = np.linspace(0.0, 0.5, 501)
     rows = simulate(s, 0.5, rtol=1e-4, t_eval=t)
