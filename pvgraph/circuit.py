@@ -327,7 +327,6 @@ class Circuit:
         comps = self.__dict__.get("_components", {})
         hint = (f" {name!r} is a component: use circuit[{name!r}]." if name in comps else "")
         if not hint:
-            import difflib
             close = difflib.get_close_matches(name, list(comps), n=3, cutoff=0.6)
             if close:
                 hint = (f" Did you mean the component {close[0]!r}? Components are read as "

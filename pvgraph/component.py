@@ -702,7 +702,6 @@ def _describe_validation(where: str, exc: ValidationError, fields=(), given=None
         if err["type"] == "missing":
             lines.append(f"  {loc}: required parameter not given")
         elif err["type"] == "extra_forbidden":
-            import difflib
             close = difflib.get_close_matches(loc, list(fields), n=2,
                                               cutoff=0.5 if len(loc) <= 3 else 0.7) or \
                 [f for f in fields if f.lower() == loc.lower()]

@@ -849,8 +849,9 @@ def test_absolute_tolerances_per_unknown_are_taken_and_checked():
         simulate(system, 0.1, atol=[1e-6, 2.0][:system.n] + [1e-6] * (system.n - 2))
 
 
-def test_a_list_of_ports_a_misspelt_component_and_parameter_are_told():
-    from pvgraph.components import Cylinder
+def _five_lpm_into_an_orifice():
+    """5 L/min into 0.5 L drained through 2 mm^2 to tank, the first node joined by a list of
+    ports: steady p = rho/2 (Q / (Cd A))^2 = 435 (5/60e3 / 1.2e-6)^2 Pa."""
     c = Circuit("demo")
     pump = c.add("pump", FlowSource(Q="5 L/min"))
     node = c.add("node", VolumeNode(V="0.5 L"))
@@ -858,6 +859,12 @@ def test_a_list_of_ports_a_misspelt_component_and_parameter_are_told():
     c.add("tank", Tank())
     c.connect([pump.port, node.port, orifice.a])        # a list: one node of three ports
     c.connect("orifice.b", "tank.port")
+    return c
+
+
+def test_a_list_of_ports_a_misspelt_component_and_parameter_are_told():
+    from pvgraph.components import Cylinder
+    c = _five_lpm_into_an_orifice()
     assert len(c._connections) == 2
     assert simulate(c, 0.5, rtol=1e-8).final("node.port.p") == pytest.approx(
         435.0 * (5 / 60e3 / 1.2e-6) ** 2, rel=1e-4)
@@ -870,13 +877,7 @@ def test_a_list_of_ports_a_misspelt_component_and_parameter_are_told():
 
 def test_nonnegative_takes_variable_names():
     from pvgraph.errors import PvgraphError
-    c = Circuit("demo")
-    c.add("pump", FlowSource(Q="5 L/min"))
-    c.add("node", VolumeNode(V="0.5 L"))
-    c.add("orifice", Orifice(A="2 mm^2"))
-    c.add("tank", Tank())
-    c.connect("pump.port", "node.port", "orifice.a")
-    c.connect("orifice.b", "tank.port")
+    c = _five_lpm_into_an_orifice()
     sol = simulate(c, 0.5, nonnegative=["node.port.p"], rtol=1e-8)
     # steady p = rho/2 (Q / (Cd A))^2 with rho 870, Cd 0.6
     assert sol.final("node.port.p") == pytest.approx(435.0 * (5 / 60e3 / 1.2e-6) ** 2, rel=1e-4)

@@ -147,7 +147,7 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
         the equations' linear relations on every row). With ``suppress_alg`` the algebraic
         variables are not error-controlled, so where events are located between steps they
         are solved from the equations at the interpolated states, where that is the better
-        value (``stats["nlu_rows"]``: the matrices that took). By default every internal
+        value (``stats["nlu_events"]``: the matrices that took). By default every internal
         step (and both sides of every event with an action) is output.
     max_step : float, optional
         Largest step size.
@@ -292,8 +292,9 @@ def _lu_kind(linear_solver, residual, n):
 THRASH_MIN_FAILURES = 1000
 THRASH_FRACTION = 0.5
 
-#: an output row stays as interpolated where the first Newton correction of its algebraic
-#: variables (weighted RMS, in tolerance units) is below this; it is solved to it otherwise
+#: a point where events are evaluated keeps its interpolated values where the first Newton
+#: correction of its algebraic variables (weighted RMS, in tolerance units) is below this;
+#: it is solved to it otherwise
 CONSISTENT_TOL = 1e-2
 CONSISTENT_ITERS = 6
 #: an algebraic variable whose solved value would carry more than this many of its tolerance
@@ -308,21 +309,20 @@ def _consistent_interpolant(integ, fun, jacobian, lu, alg_mask, rtol, atol, coun
     With the algebraic variables out of the error test (``suppress_alg``) the BDF interpolant
     of a step is error-controlled for the states only: across a kink of an algebraic variable
     (a saturation, a valve closing) the interpolated value can be far from the equations at
-    the interpolated states. Event functions are taken at
-    ``(y, y')`` with the states interpolated and the algebraic variables, with the states'
-    rates, solved from ``F(t, y, y') = 0``, as IDA's consistent initial conditions are found
+    the interpolated states. Event functions are taken at ``(y, y')`` with the states
+    interpolated and the algebraic variables, with the states' rates, solved from
+    ``F(t, y, y') = 0``, as IDA's consistent initial conditions are found
     (``IDA_YA_YDP_INIT``): Newton with the matrix of columns ``dF/dy_a`` (algebraic) and
     ``dF/dy'_d`` (states), factorised in ``lu`` and kept while it contracts fast (made again
-    at the row where it does not). The solved values are kept only where they are the better
-    ones: an algebraic variable whose solved value would carry more than
+    at the point where it does not). The solved values are kept only where they are the
+    better ones: an algebraic variable whose solved value would carry more than
     ``AMPLIFICATION_MAX`` of its tolerance units from one unit of error in the states (a
     small chamber's port flow, the difference of two orifice flows) keeps its interpolated
-    value, and so do the states' rates. A row whose first correction is small (one residual
+    value, and so do the states' rates. A point whose first correction is small (one residual
     and one solve) stays as interpolated; one whose iteration does not contract on a fresh
-    matrix stays as interpolated too. What is decided depends on the rows only, so the
-    Python and C steps (rows made one step at a time or in the loop in C) agree bit for bit;
-    the event search has its own instance, so the rows asked for do not move the events.
-    ``counter`` counts the residual evaluations (``"nre"``) and the matrices (``"nlu"``).
+    matrix stays as interpolated too. What is decided depends on the points asked only, so
+    the Python and C steps agree bit for bit. ``counter`` counts the residual evaluations
+    (``"nre"``) and the matrices (``"nlu"``).
     """
     alg = np.flatnonzero(alg_mask)
     states = np.flatnonzero(~alg_mask)
@@ -365,14 +365,6 @@ def _consistent_interpolant(integ, fun, jacobian, lu, alg_mask, rtol, atol, coun
             trusted["a"] = ~(amp > AMPLIFICATION_MAX)
         return made["ok"]
 
-    def solve(t, y, yp):
-        y_i, yp_i = y.copy(), yp.copy()
-        try:
-            return _solve(t, y, yp)
-        except (ArithmeticError, ValueError, SolverError):
-            # a residual that cannot be evaluated near the interpolated point (a user's
-            # function raising off its domain): the row stays as interpolated
-            return y_i, yp_i
 
     def _solve(t, y, yp):
         if made["ok"] is not None and not trusted["a"].any():
@@ -424,9 +416,14 @@ def _consistent_interpolant(integ, fun, jacobian, lu, alg_mask, rtol, atol, coun
 
     def interpolate(t):
         y, yp = integ.interpolate(t)
-        return solve(t, np.array(y, dtype=float), np.array(yp, dtype=float))
+        y, yp = np.array(y, dtype=float), np.array(yp, dtype=float)
+        try:
+            return _solve(t, y.copy(), yp.copy())
+        except (ArithmeticError, ValueError, SolverError):
+            # a residual that cannot be evaluated near the interpolated point (a user's
+            # function raising off its domain): the point stays as interpolated
+            return y, yp
 
-    interpolate.solve = solve
     return interpolate
 
 
@@ -651,14 +648,14 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
                             newton_iterate_retry)
     integ.reinit(t0, y, yp, t_end, first_step)
     solved = {"nre": 0, "nlu": 0}
-    # output rows between steps: the step's interpolant, which keeps every linear relation of
-    # the equations (a node's flows sum to zero on every row; solving some of the algebraic
-    # variables and not others broke that by 44 tolerance units). Event conditions between
-    # steps: with the algebraic variables solved where the equations determine them better
-    # than their interpolant (a threshold on a saturated output fired 1.1 ms early), with a
-    # matrix of their own, so t_eval never changes the run. The state an action restarts
-    # from is the step's interpolant, made consistent by the restart.
-    interpolate = integ.interpolate
+    # output rows between steps are the step's interpolant (integ.interpolate), which keeps
+    # every linear relation of the equations (a node's flows sum to zero on every row;
+    # solving some of the algebraic variables and not others broke that by 44 tolerance
+    # units). Event conditions between steps take the algebraic variables solved where the
+    # equations determine them better than their interpolant (a threshold on a saturated
+    # output fired 1.1 ms early), with a matrix of their own, so t_eval never changes the
+    # run. The state an action restarts from is the step's interpolant, made consistent by
+    # the restart.
     locate = integ.interpolate if error_mask is None else _consistent_interpolant(
         integ, fun, jacobian, LUSolver(lu_kind, pattern=lu_pattern), alg_mask, rtol, atol,
         solved)
@@ -738,7 +735,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
                 if t_eval is not None:
                     while i_eval < t_eval.size and t_eval[i_eval] <= t_new:
                         yv, ypv = ((y_new, yp_new) if t_eval[i_eval] == t_new
-                                   else interpolate(t_eval[i_eval]))
+                                   else integ.interpolate(t_eval[i_eval]))
                         ts.append(t_eval[i_eval])
                         ys.append(np.array(yv, dtype=float))
                         yps.append(np.array(ypv, dtype=float))
@@ -774,7 +771,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             before_action = hit is not None and not hit[2].terminal
             while i_eval < t_eval.size and (t_eval[i_eval] < t_upto or (
                     t_eval[i_eval] == t_upto and not before_action)):
-                yv, ypv = interpolate(t_eval[i_eval])
+                yv, ypv = integ.interpolate(t_eval[i_eval])
                 ts.append(t_eval[i_eval])
                 ys.append(yv)
                 yps.append(ypv)
@@ -827,7 +824,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
 
     if t_eval is not None and (hit is None or not hit[2].terminal):
         while i_eval < t_eval.size:
-            yv, ypv = (interpolate(t_eval[i_eval]) if end_state is None
+            yv, ypv = (integ.interpolate(t_eval[i_eval]) if end_state is None
                        else (end_state[0].copy(), end_state[1].copy()))
             ts.append(t_eval[i_eval])
             ys.append(yv)
@@ -835,7 +832,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
             i_eval += 1
     elif t_eval is None and hit is None and end_state is None:
         ts[-1] = t_end
-        ys[-1], yps[-1] = interpolate(t_end)
+        ys[-1], yps[-1] = integ.interpolate(t_end)
     if tracker is not None and hit is None and end_state is None and integ.tn < t_end:
         # the last step ends within rounding of t_end: a zero exactly at t_end (a step at
         # t_step = t_end) lies beyond it, in (tn, t_end]
@@ -872,9 +869,9 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         "nroot": tracker.nroot if tracker is not None else 0,
     }
     if solved["nlu"]:
-        # the output rows' and event functions' algebraic variables solved (see
-        # _consistent_interpolant): the matrices made for them
-        stats["nlu_rows"] = solved["nlu"]
+        # the event functions' algebraic variables solved (see _consistent_interpolant):
+        # the matrices made for them
+        stats["nlu_events"] = solved["nlu"]
     if integ.netf >= THRASH_MIN_FAILURES and integ.netf > THRASH_FRACTION * integ.nst:
         hint = ("an algebraic variable of a DAE of index above one (name the algebraic "
                 "variables with algebraic=[...] and leave them out of the test with "

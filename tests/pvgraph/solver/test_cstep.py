@@ -177,9 +177,9 @@ def test_machine_cycle_window(c_steps, linear_solver, monkeypatch):
     assert b.stats["ncfn"] + b.stats["netf"] > 0
     if linear_solver == "c":
         # the Python step factorises every matrix itself (and the starts'), the C step
-        # only the starts' matrices and those solving the output rows' algebraic variables
+        # only the starts' matrices and those solving the event functions' algebraic variables
         assert a.python_factors > b.stats["nlu"] > 20 > \
-            b.python_factors - b.stats.get("nlu_rows", 0)
+            b.python_factors - b.stats.get("nlu_events", 0)
     else:
         assert a.python_factors == b.python_factors == 0
 
