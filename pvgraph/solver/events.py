@@ -22,7 +22,7 @@ import numpy as np
 from scipy.optimize import brentq
 from pvgraph.errors import SolverError
 
-__all__ = ["Event", "normalize_events", "EventTracker"]
+__all__ = ["Event", "normalize_events", "EventTracker", "turned_back", "zeno_error"]
 
 UROUND = np.finfo(float).eps
 SIGN_PROBE = 1e-6           # fraction of the step at which an initially-zero g is probed
@@ -139,7 +139,8 @@ class EventTracker:
         self.g = np.zeros(self.m)
         self.nroot = 0
         self._vector = _shared_vector(events)
-        self._last = None       # (rounding factor, g at the start, g at the end) of the step
+        self._last = None       # (rounding factor, g at the start, g at the end, length)
+        self._turned = {}       # index -> time of the action that turned its function back
 
     def evaluate(self, t, y, yp):
         """Return all event function values at (t, y, yp)."""
@@ -187,6 +188,7 @@ class EventTracker:
         would fire again for the same crossing.
         """
         last = self._last
+        self._turned = {}
         self.g = self.evaluate(t, y, yp)
         for i in unknown:
             self.g[i] = 0.0
@@ -196,13 +198,25 @@ class EventTracker:
                 self.g[i] = 0.0
             elif g != 0.0 and (g > 0.0) == (direction > 0):
                 continue
-            elif last is not None and abs(g) <= last[0] * abs(last[2][i] - last[1][i]):
+            elif last is not None and (
+                    abs(g) <= last[0] * abs(last[2][i] - last[1][i]) or (
+                        located is not None and abs(self._value_at(i, located))
+                        <= last[0] * abs(last[2][i] - last[1][i]))):
                 self.g[i] = direction * AFTER_CROSSING
-            elif last is not None and located is not None and \
-                    abs(self._value_at(i, located)) <= last[0] * abs(last[2][i] - last[1][i]):
-                self.g[i] = direction * AFTER_CROSSING
+                if self.events[i].direction and self._reversed(i, direction, t, y, yp, last):
+                    # on the side it came from: a step across the zero is a new crossing
+                    self.g[i] = -direction * AFTER_CROSSING
+                    self._turned[i] = t
             else:
                 self.g[i] = 0.0
+
+    def _zeno(self, i, t_old, t_new):
+        raise zeno_error(self.events[i], t_old, t_new)
+
+    def _reversed(self, i, direction, t, y, yp, last) -> bool:
+        """:func:`turned_back` for event ``i`` after the step ``last`` it crossed in."""
+        return turned_back(lambda *p: self._value_at(i, p), direction, t, y, yp, last[3],
+                           abs(last[2][i] - last[1][i]))
 
     def _value_at(self, i, point):
         """Event ``i``'s function at ``point = (t, y, y')`` (the modes as they are now)."""
@@ -238,7 +252,7 @@ class EventTracker:
         # the location's time tolerance (see _locate) over the step's length, with a margin
         dt = t_new - t_old
         xtol = max(4 * UROUND * abs(t_new), 1e-14 * abs(dt), 1e-300)
-        self._last = (16.0 * xtol / dt if dt > 0 else 0.0, g_old, g_new)
+        self._last = (16.0 * xtol / dt if dt > 0 else 0.0, g_old, g_new, dt)
         # only the events whose sign changed are looked at one by one: a change makes the
         # product <= 0 (NaN compares false on both tests); the exact test follows
         candidates = (g_old * g_new <= 0.0).nonzero()[0]
@@ -256,8 +270,11 @@ class EventTracker:
                 continue
             if (ev.direction > 0 and not rising) or (ev.direction < 0 and not falling):
                 continue
+            if i in self._turned and self._turned[i] == t_old:
+                self._zeno(i, t_old, t_new)
             found.append((self._locate(ev, t_old, t_new, a, b, interp),
                           i, 1 if rising else -1))
+        self._turned = {}
         found.sort()
         return found
 
@@ -279,6 +296,36 @@ class EventTracker:
             return t_new if ga == 0.0 or np.sign(ga) == np.sign(g_old) else t_old
         xtol = max(4 * UROUND * abs(t_new), 1e-14 * abs(t_new - t_old), 1e-300)
         return brentq(g, t_old, t_new, xtol=xtol, rtol=4 * UROUND)
+
+
+def turned_back(g, direction, t, y, yp, dt, change=0.0) -> bool:
+    """True if an action at ``t`` turned the event function ``g(t, y, y')``, which crossed its
+    zero in ``direction`` over a step of length ``dt`` (changing by ``change``), back from its
+    zero: its rate at the restart (a first-order probe along y') points away from the side it
+    crossed to, at more than a millionth of its mean rate over that step. It is then on the
+    side it came from, so a step that ends across the zero again is a new crossing (a ball
+    leaving the floor), not the same one."""
+    if not dt > 0.0:
+        return False
+    delta = SIGN_PROBE * dt
+    rise = float(g(t + delta, y + delta * yp, yp)) - float(g(t, y, yp))
+    return rise * direction < 0.0 and abs(rise) / delta > 1e-6 * change / dt
+
+
+def zeno_error(ev, t_old, t_new) -> SolverError:
+    """The stop for event ``ev``, turned back by its action at ``t_old`` and carried across
+    its zero again by the very next step (to ``t_new``): the motion the action started ends
+    within one step (a ball that leaves the floor below the tolerances' resolution). Firing
+    again there would act on the state the action left (a rising ball's speed reversed);
+    going on would leave the condition crossed unseen (the ball falls through the floor)."""
+    return SolverError(
+        f"event {ev.name!r} fired at t = {t_old:.12g} and its action turned its function "
+        f"back, but the next step (to t = {t_new:.12g}, {t_new - t_old:.3g} long) carried it "
+        f"across its zero again: the motion the action starts is below the tolerances' "
+        f"resolution, and the events accumulate there (Zeno behaviour: a bouncing ball's "
+        f"impacts at its resting time). Give the model a resting state (e.g. the impact's "
+        f"action holds the body where the rebound speed falls below a threshold), or end the "
+        f"run before t = {t_old:.9g}.", t=t_old)
 
 
 def check_times(t0, t_end, t_eval, max_step, first_step):

@@ -45,7 +45,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from pvgraph.errors import InitializationError, SolverError
-from pvgraph.solver.events import EventTracker, check_times, normalize_events, stopping_event
+from pvgraph.solver.events import (EventTracker, check_times, normalize_events, stopping_event,
+                                   turned_back, zeno_error)
 from pvgraph.solver.ida import dominant_names, initial_step
 from pvgraph.solver.initial import start_values
 from pvgraph.solver.linalg import SPARSE_MIN_N, JacobianEvaluator
@@ -307,6 +308,7 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
     restarted = False
     n_restarts, t_failed = 0, -np.inf
     chatter = None      # (first time, count, last time) of actions in a row at one instant
+    pending, dt_hit = None, 0.0     # the events an action fired, the step they were found in
     with contextlib.redirect_stdout(captured), warnings.catch_warnings(), \
             np.errstate(all="ignore"):
         warnings.filterwarnings("ignore", message=SPARSE_WARNING)
@@ -337,6 +339,11 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                     i_eval += 1
             t_last = t_start
             last_y, last_yp = y.copy(), yp.copy()
+            # the directional events the actions just turned back from their zeros: the
+            # first step ending across a zero again stops the run (see zeno_error)
+            turned = [(j, d) for j, d in (pending or ()) if turned_back(
+                event_list[j].fun, d, t_start, y, yp, dt_hit)]
+            pending = None
             hit = None
             restarted = False
             stalled = 0     # successful steps in a row that left t where it was
@@ -368,6 +375,9 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                 if out.status == IDA_ROOT_RETURN:
                     info = np.asarray(out.i_events[-1])
                     fired = []      # every root IDA returns here is at this instant
+                    for j, d in turned:
+                        if np.sign(info[j]) == d:
+                            raise zeno_error(event_list[j], t_start, tn)
                     for i in np.flatnonzero(info):
                         ev = event_list[i]
                         records.append(EventRecord(tn, int(i), ev.name, out.y.copy(),
@@ -382,9 +392,14 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                             stalled = _stall(stalled, tn, t_end)
                         continue
                     nsteps += 1     # the step that found the event is left behind
+                    dt_hit, turned = tn - t_last, ()
                 elif tn > t_last:
                     nsteps += 1
                     stalled = 0
+                    for j, d in turned:
+                        if float(event_list[j].fun(tn, out.y, out.yp)) * d > 0.0:
+                            raise zeno_error(event_list[j], t_start, tn)
+                    turned = ()
                 else:
                     # no progress: the call after an output time IDA interpolated to, or a
                     # step below the rounding of t (SUNDIALS' "t + h = t" warning), which
@@ -431,6 +446,13 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
             chatter = _chattering(chatter, te, fired, event_list, 0.0, SOLVER_NAME)
             for j in fired:
                 ye, ype = event_list[j].apply(te, ye, ype)
+            pending = {}
+            for rec in reversed(records):
+                if rec.t != te:
+                    break
+                if rec.index in fired and event_list[rec.index].direction:
+                    pending.setdefault(rec.index, rec.direction)
+            pending = list(pending.items())
             t_start, y, yp = te, ye, ype
             mode = calc_initial if calc_initial is not None else "algebraic"
             if t_end - t_start <= 1e-12 * max(1.0, abs(t_end)):

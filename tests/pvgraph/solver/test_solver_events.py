@@ -286,3 +286,36 @@ def test_an_event_on_an_algebraic_variable_fires_once_for_one_crossing():
                                       action=act, name="cross")])
         assert count[0] == 1, rtol
         assert sol.t_events[0] == pytest.approx(np.log(2.0), abs=30 * rtol)
+
+
+@pytest.mark.parametrize("backend", ["pvgraph", "ida"])
+@pytest.mark.parametrize("rtol", [1e-4, 1e-6, 1e-8])
+def test_a_bouncing_ball_past_its_zeno_time_stops_instead_of_falling_through(backend, rtol):
+    """A ball dropped from 1 m with restitution 0.8 lands at t_k accumulating at the Zeno
+    time t_Z = t1 (1 + 2e / (1 - e)) = 4.0637 s. Past the bounces the tolerances resolve, the
+    last action sent the ball up below the resolution and the next step ended below the
+    floor without a crossing: it fell through, h(5) = -4.3 m, with success on both backends.
+    The run now stops there with an error naming the event; the impacts before it are the
+    closed form's."""
+    g, e = 9.81, 0.8
+    solve = solve_dae
+    if backend == "ida":
+        pytest.importorskip("sksundae")
+        from pvgraph.solver import solve_dae_sundials as solve
+
+    def bounce(t, y, yp):
+        return np.array([0.0, -e * y[1]]), np.array([-e * y[1], -g])
+    floor = Event(lambda t, y, yp: y[0], direction=-1, action=bounce, name="floor")
+    t1 = math.sqrt(2.0 / g)
+    t_zeno = t1 * (1.0 + 2.0 * e / (1.0 - e))
+    with pytest.raises(SolverError, match="'floor'.*Zeno") as info:
+        solve(lambda t, y, yp: np.array([yp[0] - y[1], yp[1] + g]), (0.0, 5.0),
+              [1.0, 0.0], [0.0, -g], rtol=rtol, atol=rtol * 1e-2, events=[floor])
+    assert t_zeno - 1e-4 < info.value.t <= t_zeno
+    # the bounces the tolerances resolve are unchanged: the 19 before t = 4 s land on the
+    # closed form
+    res = solve(lambda t, y, yp: np.array([yp[0] - y[1], yp[1] + g]), (0.0, 4.0),
+                [1.0, 0.0], [0.0, -g], rtol=rtol, atol=rtol * 1e-2, events=[floor])
+    times = t1 + 2.0 * e * t1 * (1.0 - e ** np.arange(19)) / (1.0 - e)
+    np.testing.assert_allclose(res.t_events, times, rtol=0.0, atol=1e-2 * rtol)
+    assert res.success and res.y[:, 0].min() > -rtol
