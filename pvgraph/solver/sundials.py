@@ -19,7 +19,15 @@ How the backend drives IDA:
   time already passed).
 * Events are located by IDA's rootfinding. At an event with an action, IDA stops, the
   action is applied, pvgraph recomputes consistent values and IDA is re-initialised; an
-  output time equal to the event time reports the value after the action.
+  output time equal to the event time reports the value after the action. IDA masks a
+  root function that starts at zero; so that a restart behaves as the built-in solver's
+  (:meth:`pvgraph.solver.events.EventTracker.reset`), the backend checks the fired events
+  over the first step after it: one left at its zero that steps back to where it came from
+  has crossed back (a relay: fired again at the restart, and stopped as chattering after 50
+  such actions); a directional one its action turned back that steps across its zero again
+  stops the run as Zeno behaviour (:func:`~pvgraph.solver.events.zeno_error`); one the
+  restart's consistent values put back before its zero (an event on an algebraic variable)
+  does not fire again for the same crossing.
 * With ``jac_sparsity`` and n >= ``SPARSE_MIN_N`` IDA uses its sparse direct solver
   (SuperLU_MT) with the user Jacobian's entries in the pattern's CSC order.
 * SUNDIALS' own messages (printed by scikit-sundae) are captured and put into the
@@ -45,8 +53,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from pvgraph.errors import InitializationError, SolverError
-from pvgraph.solver.events import (EventTracker, check_times, normalize_events, stopping_event,
-                                   turned_back, zeno_error)
+from pvgraph.solver.events import (SIGN_PROBE, UROUND, EventTracker, check_times,
+                                   normalize_events, stopping_event, turned_back, zeno_error)
 from pvgraph.solver.ida import dominant_names, initial_step
 from pvgraph.solver.initial import start_values
 from pvgraph.solver.linalg import SPARSE_MIN_N, JacobianEvaluator
@@ -115,6 +123,18 @@ class _Residual:
 #: successful IDA steps in a row that leave t unchanged before the run is stopped (SUNDIALS'
 #: own limit of steps per call, mxstep, is 500)
 MAX_STALLED_STEPS = 500
+
+
+def _at_zero(g, t, y, yp, dt) -> bool:
+    """True if the event function ``g`` is at its zero at ``(t, y, y')`` within what IDA's
+    location of a root leaves (its time tolerance, 100 ulps of t and the step, times the
+    function's rate, from a first-order probe along y')."""
+    g0 = float(g(t, y, yp))
+    if g0 == 0.0:
+        return True
+    delta = SIGN_PROBE * dt if dt > 0.0 else 1e-9 * max(abs(t), 1.0)
+    rate = abs(float(g(t + delta, y + delta * yp, yp)) - g0) / delta
+    return abs(g0) <= 200.0 * UROUND * (abs(t) + abs(dt)) * rate
 
 
 def _stall(stalled, tn, t_end):
@@ -309,6 +329,7 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
     n_restarts, t_failed = 0, -np.inf
     chatter = None      # (first time, count, last time) of actions in a row at one instant
     pending, dt_hit = None, 0.0     # the events an action fired, the step they were found in
+    located = None                  # (t, y, y') where they were found, before the actions
     with contextlib.redirect_stdout(captured), warnings.catch_warnings(), \
             np.errstate(all="ignore"):
         warnings.filterwarnings("ignore", message=SPARSE_WARNING)
@@ -341,8 +362,27 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
             last_y, last_yp = y.copy(), yp.copy()
             # the directional events the actions just turned back from their zeros: the
             # first step ending across a zero again stops the run (see zeno_error)
-            turned = [(j, d) for j, d in (pending or ()) if turned_back(
-                event_list[j].fun, d, t_start, y, yp, dt_hit)]
+            turned = [(j, d) for j, d in (pending or ()) if event_list[j].direction and
+                      turned_back(event_list[j].fun, d, t_start, y, yp, dt_hit)]
+            # the events the actions left at their zeros that also fire crossing back (a
+            # relay): IDA masks a root function that starts at zero, so a first step back to
+            # the side it came from is a crossing back at the restart, as the built-in
+            # solver sees it (see EventTracker.reset)
+            back = [(j, d) for j, d in (pending or ()) if event_list[j].direction != d and
+                    _at_zero(event_list[j].fun, t_start, y, yp, dt_hit)]
+            y_start, yp_start = y.copy(), yp.copy()
+            # the events the restart put back on the side they came from, while the actions
+            # left them at their zeros (the restart re-solved an algebraic variable the
+            # crossing was found on): IDA would find the same crossing again. Its next root
+            # in that direction is left out, unless the function moved away first (beyond
+            # twice the restart's offset)
+            again = {}
+            for j, d in (pending or ()):
+                g = event_list[j].fun
+                if event_list[j].direction in (0, d):
+                    offset = float(g(t_start, y, yp)) * d
+                    if offset < 0.0 and _at_zero(g, *located, dt_hit):
+                        again[j] = (d, -offset)
             pending = None
             hit = None
             restarted = False
@@ -378,7 +418,11 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                     for j, d in turned:
                         if np.sign(info[j]) == d:
                             raise zeno_error(event_list[j], t_start, tn)
+                    back = ()
                     for i in np.flatnonzero(info):
+                        if i in again and np.sign(info[i]) == again[i][0]:
+                            del again[i]    # the crossing the last action was for
+                            continue
                         ev = event_list[i]
                         records.append(EventRecord(tn, int(i), ev.name, out.y.copy(),
                                                    out.yp.copy(), int(np.sign(info[i]))))
@@ -400,6 +444,20 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                         if float(event_list[j].fun(tn, out.y, out.yp)) * d > 0.0:
                             raise zeno_error(event_list[j], t_start, tn)
                     turned = ()
+                    for j, d in back:
+                        if float(event_list[j].fun(tn, out.y, out.yp)) * d < 0.0:
+                            ev = event_list[j]
+                            records.append(EventRecord(t_start, j, ev.name, y_start.copy(),
+                                                       yp_start.copy(), -d))
+                            if ev.terminal or ev.action is not None:
+                                hit = (t_start, [j], ev, y_start.copy(), yp_start.copy())
+                                break
+                    back = ()
+                    if hit is not None:     # the step is left behind: the action comes first
+                        break
+                    for j, (d, offset) in list(again.items()):
+                        if -float(event_list[j].fun(tn, out.y, out.yp)) * d > 2.0 * offset:
+                            del again[j]
                 else:
                     # no progress: the call after an output time IDA interpolated to, or a
                     # step below the rounding of t (SUNDIALS' "t + h = t" warning), which
@@ -444,13 +502,14 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
             # actions in a row at one instant (a sliding mode): stopped as the built-in solver
             # stops them, instead of running to max_steps
             chatter = _chattering(chatter, te, fired, event_list, 0.0, SOLVER_NAME)
+            located = (te, ye.copy(), ype.copy())
             for j in fired:
                 ye, ype = event_list[j].apply(te, ye, ype)
             pending = {}
             for rec in reversed(records):
                 if rec.t != te:
                     break
-                if rec.index in fired and event_list[rec.index].direction:
+                if rec.index in fired and rec.direction:
                     pending.setdefault(rec.index, rec.direction)
             pending = list(pending.items())
             t_start, y, yp = te, ye, ype
