@@ -33,7 +33,8 @@ A sub-circuit is a component entry with ``type = "Circuit"`` and its own ``compo
 those of its sub-circuits, take the properties they were not given.
 :func:`save` writes parameters as SI numbers with the unit each declares (``"0.0005 m^3"``), so
 a saved circuit loads back to the same floats. :func:`schema` is the JSON schema of the format.
-An error names the file and the line of the entry at fault.
+An error names the file and the line of the entry at fault; a file with several mistakes
+in its components, connections or exposed ports has them all told at once, in file order.
 """
 
 from __future__ import annotations
@@ -332,66 +333,97 @@ def _line_of(text: str, loc) -> int | None:
 
 
 class _Loader:
+    """Builds the circuits of a validated model file, collecting every mistake it finds (a
+    component that cannot be made is left out, and so are the connections and exposed ports
+    that name it, so that one mistake is told once) rather than stopping at the first."""
+
     def __init__(self, text: str, source: str, modules):
         self.text = text
         self.source = source
         self.known = _library_classes(modules)
+        self.errors: list[tuple[int, str]] = []     # (line or 0, message), in file order
 
-    def fail(self, loc, message, find=None) -> ModelFileError:
+    def fail(self, loc, message, find=None) -> None:
         line = _line_of(self.text, find or loc)
         where = f"{self.source}" + (f", line {line}" if line else "")
         path = ".".join(str(k) if str(k).isidentifier() or isinstance(k, int)
                         else json.dumps(str(k)) for k in loc)
-        return ModelFileError(f"{where} ({path}): {message}")
+        self.errors.append((line or 0, f"{where} ({path}): {message}"))
 
-    def add(self, circuit, name, component, loc) -> None:
+    def raise_errors(self) -> None:
+        """Raise one ModelFileError telling every mistake found (by line)."""
+        if not self.errors:
+            return
+        told = [m for _, m in sorted(self.errors, key=lambda e: e[0])]
+        if len(told) == 1:
+            raise ModelFileError(told[0])
+        raise ModelFileError(f"{len(told)} mistakes in {self.source}:\n" +
+                             "\n".join("  " + m.replace("\n", "\n    ") for m in told))
+
+    def add(self, circuit, name, component, loc) -> bool:
         try:
             circuit.add(name, component)
         except ParameterError as exc:      # the circuit's fluid does not fit the part
-            raise self.fail(getattr(self, "fluid_loc", loc), str(exc)) from None
+            self.fail(getattr(self, "fluid_loc", loc), str(exc))
         except CircuitError as exc:        # a name that is not an identifier
-            raise self.fail(loc, str(exc)) from None
+            self.fail(loc, str(exc))
+        else:
+            return True
+        return False
 
     def node(self, name: str, entry, loc) -> Circuit:
         c = Circuit(name)
         if entry.fluid:     # the circuit's fluid (Circuit.use_fluid), for the parts added next
             c._fluid = dict(entry.fluid)
             self.fluid_loc = loc + ("fluid",)
+        missing = set()     # the components that could not be made
         for cname, child in entry.components.items():
             here = loc + ("components", cname)
             if isinstance(child, CircuitEntry):
-                self.add(c, cname, self.node(cname, child, here), here)
+                told = len(self.errors)
+                sub = self.node(cname, child, here)
+                if len(self.errors) > told or not self.add(c, cname, sub, here):
+                    missing.add(cname)     # its ports may be the ones left out
                 continue
+            comp = None
             try:
                 cls = _resolve_type(child.type, self.known)
             except KeyError as exc:
-                raise self.fail(here + ("type",), exc.args[0]) from None
-            try:
-                comp = cls(**child.params, start=dict(child.start) or None)
-            except ParameterError as exc:
-                raise self.fail(here + ("params",), str(exc)) from None
-            except CircuitError as exc:
-                raise self.fail(here + ("start",), str(exc)) from None
-            self.add(c, cname, comp, here)
+                self.fail(here + ("type",), exc.args[0])
+            else:
+                try:
+                    comp = cls(**child.params, start=dict(child.start) or None)
+                except ParameterError as exc:
+                    self.fail(here + ("params",), str(exc))
+                except CircuitError as exc:
+                    self.fail(here + ("start",), str(exc))
+            if comp is None or not self.add(c, cname, comp, here):
+                missing.add(cname)
         if entry.fluid:
             from .circuit import _FLUID_NAMES
             unknown = sorted(k for k in entry.fluid if k not in _FLUID_NAMES)
             if unknown:
-                raise self.fail(loc + ("fluid",), f"{', '.join(map(repr, unknown))}: not a "
-                                                  f"fluid property; a fluid has "
-                                                  f"{', '.join(sorted(_FLUID_NAMES))}")
+                self.fail(loc + ("fluid",), f"{', '.join(map(repr, unknown))}: not a fluid "
+                                            f"property; a fluid has "
+                                            f"{', '.join(sorted(_FLUID_NAMES))}")
+
+        def names_missing(refs):
+            return any(isinstance(r, str) and r.split(".")[0] in missing for r in refs)
         for k, refs in enumerate(entry.connections):
+            if names_missing(refs):
+                continue
             try:
                 c.connect(*refs)
             except CircuitError as exc:
-                raise self.fail(loc + ("connections", k), str(exc),
-                                find=loc + ("connections",) + ((refs[0],) if refs else ())) \
-                    from None
+                self.fail(loc + ("connections", k), str(exc),
+                          find=loc + ("connections",) + ((refs[0],) if refs else ()))
         for pname, exp in entry.expose.items():
+            if names_missing([exp.port]):
+                continue
             try:
                 c.expose(pname, exp.port, exp.description)
             except CircuitError as exc:
-                raise self.fail(loc + ("expose", pname), str(exc)) from None
+                self.fail(loc + ("expose", pname), str(exc))
         return c
 
 
@@ -428,6 +460,7 @@ def from_dict(data: dict, *, modules: Iterable[str] = (), text: str = "",
     root = CircuitEntry(type="Circuit", components=model.components,
                         connections=model.connections, expose=model.expose, fluid=model.fluid)
     circuit = loader.node(model.name, root, ())
+    loader.raise_errors()
     circuit._origin = functools.partial(_where, text, source)   # for the compiler's messages
     return circuit
 

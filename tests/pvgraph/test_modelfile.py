@@ -239,3 +239,37 @@ def test_a_fluid_in_the_file_reaches_the_parts_not_given_their_own(tmp_path):
     bad = TEXT.replace('name = "demo"', 'name = "demo"\nfluid = { rho = 5 }')
     with pytest.raises(ModelFileError, match=r"(?s)bad.toml, line 4 \(fluid\): orifice: .*rho = 5"):
         loads(bad, source="bad.toml")
+
+
+def test_every_mistake_of_a_file_is_told_at_once_by_line():
+    """A misspelt unit, a misspelt type and a connection to a misspelt component: one
+    error tells all three, each with its line, in file order. The connections that name a
+    component left out (the misspelt type's) are not told again."""
+    text = "\n".join([
+        'format = 1',
+        'name = "demo"',
+        'connections = [["pump.port", "node.port", "orifice.a"], ["orifice.b", "tank.port"],',
+        '               ["node.port", "tnk.port"]]',
+        '[components.pump]',
+        'type = "FlowSource"',
+        'params = { Q = "10 L/mn" }',
+        '[components.node]',
+        'type = "VolumeNode"',
+        'params = { V = "0.5 L" }',
+        '[components.orifice]',
+        'type = "Orifise"',
+        '[components.tank]',
+        'type = "Tank"'])
+    with pytest.raises(ModelFileError) as info:
+        loads(text, source="demo.toml")
+    lines = str(info.value).splitlines()
+    assert lines[0] == "3 mistakes in demo.toml:"
+    told = [line.strip() for line in lines[1:] if line.startswith("  demo.toml")]
+    assert [t.split(" (")[0] for t in told] == ["demo.toml, line 3", "demo.toml, line 7",
+                                               "demo.toml, line 12"]
+    assert "'tnk'" in told[0] and "Did you mean 'tank'" in told[0]
+    assert "unknown unit 'mn'" in str(info.value) and "'Orifise'" in told[2]
+    # one mistake keeps the one-line message
+    with pytest.raises(ModelFileError, match=r"^demo.toml, line 12 \(components.orifice.type\)"):
+        loads(text.replace("10 L/mn", "10 L/min").replace('"tnk.port"', '"tank.port"'),
+              source="demo.toml")
