@@ -713,6 +713,7 @@ class _Reducer:
             w = np.array([self.infos[self.var_key[v][0]].nominal * self._preference(v)
                           * self._angle_weight(v)
                           * ORDER_PREFERENCE ** (self.var_key[v][1] - 1) for v in cand])
+            plain = Hs * np.array([self.infos[self.var_key[v][0]].nominal for v in cand])
             Hs = Hs * w
             _, R, piv = qr(Hs, pivoting=True, mode="economic")
             if len(piv) >= m and abs(R[m - 1, m - 1]) > PIVOT_RANK_TOL * abs(R[0, 0]):
@@ -727,6 +728,15 @@ class _Reducer:
                             Hs[:, got], tol=PIVOT_RANK_TOL * abs(R[0, 0])) == m:
                         return got
                 return sorted(int(j) for j in piv[:m])
+            # the preferences spread the columns over many decades (an angular speed's
+            # derivative at 1e-6 beside a position's second derivative at 1e4): the block
+            # they choose may be regular all the same, which the columns at their nominal
+            # scales tell; else the best-conditioned choice at those scales
+            if len(piv) >= m:
+                got = self._regular(plain, piv[:m]) or self._regular(
+                    plain, qr(plain, pivoting=True, mode="economic")[2][:m])
+                if got is not None:
+                    return got
             raise StructureError(
                 "index reduction: the hidden constraints "
                 + "; ".join(self._label(k) for k in eqs)
@@ -747,6 +757,16 @@ class _Reducer:
                 + " cannot be solved for any of the derivatives "
                 + ", ".join(derivative_name(*self.var_key[v]) for v in cand))
         return got
+
+    @staticmethod
+    def _regular(plain, cols):
+        """``cols`` sorted if the square block ``plain[:, cols]`` is regular (its smallest
+        singular value above PIVOT_RANK_TOL times its largest), else None."""
+        cols = [int(j) for j in cols]
+        if len(cols) != plain.shape[0]:
+            return None
+        sv = np.linalg.svd(plain[:, cols], compute_uv=False)
+        return sorted(cols) if sv[-1] > PIVOT_RANK_TOL * sv[0] else None
 
     def _structural(self, jac, cand):
         """A choice of columns by matching alone, in the preference order (or None)."""
