@@ -57,9 +57,11 @@ pressure, assisted by the pilot pressure times the pilot ratio, reaches the sett
 from __future__ import annotations
 
 import math
+from typing import Optional
 
 from pydantic import Field, model_validator
 
+from pvgraph import expr as E
 from pvgraph.component import Component, Hydraulic, Params, Variable, der
 from pvgraph.laws import orifice_flow
 
@@ -91,6 +93,13 @@ class ReliefValveParams(_RestrictionParams):
                      description="Area gradient (flow gain) of the opening [m^2/m]")
     theta: float = Field(math.radians(69.0), ge=0.0, le=math.pi / 2,
                          description="Jet angle of the flow force [rad] (pi/2: no flow force)")
+    Q_rated: Optional[float] = Field(
+        None, gt=0.0, le=1.0,
+        description="Flow the valve passes fully open at p_full, in the circuit's fluid "
+                    "[m^3/s]: where given (ReliefValve.from_setting gives it), the opening's "
+                    "area gradient is sized from it at run time, Q_rated / (Cd sqrt(2 p_full / "
+                    "rho) x_max), so the data-sheet point holds whatever rho and Cd the circuit "
+                    "gives; w then only scales the flow force")
 
     @model_validator(mode="after")
     def _leak(self):
@@ -141,7 +150,10 @@ class ReliefValve(Component):
         pressure rises with the square of the flow (a "60 L/min, 150 + 15 bar" valve holds
         225 bar at 70 L/min, 371 bar at 90 L/min). Give the largest flow the valve will
         pass, not a catalogue's nominal flow, where the characteristic must stay flat; a
-        data sheet's p-Q curve read at two flows gives ``dp_rated`` at that flow."""
+        data sheet's p-Q curve read at two flows gives ``dp_rated`` at that flow. The point
+        holds in the circuit's fluid: the opening is sized from ``Q_rated`` at run time (a
+        circuit's :meth:`~pvgraph.Circuit.use_fluid` or a runtime ``rho`` keeps it), as a
+        ServoValve keeps its rated flow."""
         from pvgraph.units import number_in
         p_crack = number_in(p_crack, "Pa", "ReliefValve.from_setting p_crack")
         Q = number_in(Q_rated, "m^3/s", "ReliefValve.from_setting Q_rated")
@@ -151,7 +163,7 @@ class ReliefValve(Component):
                 from pvgraph.errors import ParameterError
                 raise ParameterError(f"ReliefValve.from_setting: {name} must be positive, got "
                                      f"{value!r}")
-        for name in ("A_s", "k", "x_max", "w", "theta", "p_crack"):
+        for name in ("A_s", "k", "x_max", "w", "theta", "p_crack", "Q_rated"):
             if name in params:
                 from pvgraph.errors import ParameterError
                 raise ParameterError(f"ReliefValve.from_setting chooses {name} from the setting; "
@@ -162,12 +174,16 @@ class ReliefValve(Component):
         x_max, a_s = 1e-3, 20e-6
         a_open = Q / (cd * math.sqrt(2.0 * (p_crack + dp_o) / rho))
         return cls(p_crack=p_crack, A_s=a_s, k=dp_o * a_s / x_max, x_max=x_max,
-                   w=a_open / x_max, theta=math.pi / 2, **params)
+                   w=a_open / x_max, theta=math.pi / 2, Q_rated=Q, **params)
 
     def equations(self, v, p):
         dp = v.observe("dp", v.P.p - v.T.p, "Pa", "pressure drop P - T")
         x = v.observe("x", relief_opening(dp, p), "m", "spool opening")
-        A = p.A_leak + p.w * x
+        w = p.w
+        if p.Q_rated is not None:   # sized from the data sheet in the circuit's fluid
+            p_full = p.p_crack + p.k * p.x_max / p.A_s
+            w = p.Q_rated / (p.Cd * E.sqrt(2.0 * p_full / p.rho) * p.x_max)
+        A = p.A_leak + w * x
         q = v.observe("q", orifice_flow(p.Cd, A, dp, p.rho, p.dp_t), "m^3/s", "flow P -> T")
         v.observe("P_loss", q * dp, "W", "hydraulic power dissipated")
         return [v.P.q - q, v.P.q + v.T.q]
@@ -180,6 +196,13 @@ class DynamicReliefValveParams(ReliefValveParams):
                           description="Stiffness of the seat and the stroke stop [N/m]")
     d_stop: float = Field(1e3, ge=0.0, le=1e8,
                           description="Damping of the seat and the stroke stop [N s/m]")
+
+    @model_validator(mode="after")
+    def _no_rating(self):
+        if self.Q_rated is not None:
+            raise ValueError("Q_rated sizes the quasi-static ReliefValve (from_setting); a "
+                             "dynamic valve's opening is its area gradient w")
+        return self
 
 
 class DynamicReliefValve(Component):
