@@ -45,7 +45,9 @@ class Event:
         back right after the event's own action is a crossing (as a relay's switch makes it):
         an impact that reverses the motion is ``direction=-1``, or it fires again at once.
     terminal : bool
-        Stop the integration at this event.
+        Stop the integration at this event. The actions of the events that fire at that
+        instant (its own included) still run, and the output ends with the state after them
+        (as Modelica's when-clauses run at a ``terminate()``).
     action : callable or None
         ``action(t, y, yp)`` called at the event. It may switch mode state captured by the
         residual and may return a new ``(y, yp)``. The solver then recomputes consistent

@@ -659,7 +659,13 @@ class IDAIntegrator:
             culprits = dominant_names(self.ee * self.ewt_err, self.var_names)
             text += ("; the step size is controlled by the local error of "
                      + ", ".join(map(repr, culprits)))
-        raise SolverError(text + ".", t=t, h=h, culprits=culprits)
+        raise SolverError(self._hinted(text) + ".", t=t, h=h, culprits=culprits)
+
+    def _hinted(self, text) -> str:
+        """``text`` with the hint of equations that constrain the states alone, where the
+        caller found some (see solve._constraint_rows)."""
+        hint = getattr(self, "index_hint", "")
+        return text + ". " + hint.rstrip(". ") if hint else text
 
     def _reads_no_rate(self, j) -> bool:
         """True if the residual does not change with y'[j] at the last accepted point (an
@@ -734,4 +740,4 @@ class IDAIntegrator:
                         f"above one; reduce it (differentiate the constraint), or run it with "
                         f"its algebraic variables named and out of the error test "
                         f"(suppress_alg=True with algebraic=[...])")
-        raise SolverError(head + msg + ".", t=t, h=h, culprits=culprits)
+        raise SolverError(self._hinted(head + msg) + ".", t=t, h=h, culprits=culprits)

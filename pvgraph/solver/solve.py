@@ -150,7 +150,11 @@ def solve_dae(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algebraic=None
         value (``stats["nlu_events"]``: the matrices that took). By default every internal
         step (and both sides of every event with an action) is output.
     max_step : float, optional
-        Largest step size.
+        Largest step size. A forcing term that switches (a pulse from 1 s to 1.001 s) is
+        seen only where a step lands in it: the steps may jump over a short one (the
+        error test sees nothing before it). Give its edges as events (a non-terminal
+        ``Event(lambda t, y, yp: t - 1.001, action=lambda t, y, yp: None)`` restarts
+        there, as IDA's stop time), or a ``max_step`` below its length.
     first_step : float, optional
         First step size (otherwise IDA's estimate).
     calc_initial : {"algebraic", "all", None}
@@ -242,7 +246,12 @@ def check_arguments(t_span, y0, yp0, rtol, atol, max_steps, var_names):
         raise ValueError(f"y0 has {n} entries but yp0 has {yp0.size}")
     if not (np.all(np.isfinite(y0)) and np.all(np.isfinite(yp0))):
         raise InitializationError("y0 and yp0 must be finite")
-    rtol = float(rtol)
+    try:
+        rtol = float(rtol)
+    except (TypeError, ValueError):
+        raise ValueError(f"rtol must be one positive number (as IDA's: one relative "
+                         f"tolerance for every variable; give per-variable tolerances "
+                         f"through atol), got {rtol!r}") from None
     if not rtol > 0.0 or not np.isfinite(rtol):
         raise ValueError(f"rtol must be positive and finite, got {rtol}")
     if rtol < RTOL_MIN:
@@ -551,6 +560,26 @@ def _apply_actions(fired, event_list, te, ye, ype, initialise, mode):
         raise InitializationError(f"after event {names} at t = {te:.9g}: {exc}") from exc
 
 
+def _final_actions(fired, event_list, te, ye, ype, initialise, mode, ts, ys, yps, steps):
+    """At a terminal event: the actions of the events ``fired`` with it still run (a mode
+    switch, a reset at the instant the run stops, as Modelica's when-clauses run at a
+    ``terminate()``), and the output ends with the state after them: a row of its own after
+    the state before (``steps``: the rows are the steps), or the rows at ``te`` (output
+    times) take it."""
+    if all(event_list[j].action is None for j in fired):
+        return
+    ye, ype = _apply_actions(fired, event_list, te, ye, ype, initialise, mode)
+    if steps:
+        ts.append(te)
+        ys.append(ye.copy())
+        yps.append(ype.copy())
+        return
+    for k in range(len(ts) - 1, -1, -1):
+        if ts[k] < te:
+            break
+        ys[k], yps[k] = ye.copy(), ype.copy()
+
+
 def _nonnegative(nonnegative, n, y0, var_names):
     """The indices of the variables constrained to y >= 0 (checked at the start), or None."""
     if nonnegative is None or nonnegative is False:
@@ -596,6 +625,40 @@ def _check_declared_algebraic(jacobian, t0, y0, yp0, r0, alg_mask, var_names):
                      "out of algebraic= (an algebraic variable's rate appears in no equation).")
 
 
+def _constraint_rows(jacobian, t0, y0, yp0, r0, alg_mask) -> list:
+    """The equations that read neither a rate nor an algebraic variable at the start (and do
+    read a state): constraints on the states alone, a DAE of index two at least (three where
+    the constraint's derivative does not read the algebraic variables either: a pendulum's
+    position). Empty where that cannot be told."""
+    try:
+        cy = alg_mask.astype(float)
+        m = jacobian.mixed_matrix(t0, y0, yp0, r0, cy, 1.0 - cy, np.maximum(np.abs(y0), 1.0))
+        m = m.toarray() if hasattr(m, "toarray") else np.asarray(m)
+        d = jacobian.mixed_matrix(t0, y0, yp0, r0, 1.0 - cy, np.zeros(y0.size),
+                                  np.maximum(np.abs(y0), 1.0))
+        d = d.toarray() if hasattr(d, "toarray") else np.asarray(d)
+    except Exception:       # noqa: BLE001  (only a hint for the messages)
+        return []
+    if not (np.all(np.isfinite(m)) and np.all(np.isfinite(d))):
+        return []
+    return [int(i) for i in np.flatnonzero(np.all(m == 0.0, axis=1) & np.any(d != 0.0, axis=1))]
+
+
+def _index_hint(rows) -> str:
+    """The message's hint for equations that constrain the states alone (see
+    :func:`_constraint_rows`)."""
+    if not rows:
+        return ""
+    shown = ", ".join(map(str, rows[:4])) + (f" and {len(rows) - 4} more" if len(rows) > 4 else "")
+    return (f"equation{'s' if len(rows) > 1 else ''} {shown} constrain{'' if len(rows) > 1 else 's'} "
+            f"differential variables alone (no rate, no algebraic variable read), so the DAE's "
+            f"index is two or more; solve_dae takes index one and Hessenberg index two, not a "
+            f"mechanism's position constraints (index three: a pendulum in Cartesian "
+            f"coordinates). Differentiate such a constraint to the velocity level (and "
+            f"stabilise it), or write the model as a Component, whose compiler reduces the "
+            f"index. ")
+
+
 def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, suppress_alg, jac,
                jac_sparsity, event_list, t_eval, max_step, first_step, calc_initial,
                max_order, max_steps, var_names, dense_output, no_growth_after_failure=None,
@@ -615,8 +678,10 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     else:
         fun = residual
     jacobian = JacobianEvaluator(fun, n, jac, jac_sparsity, typical=atol / rtol)
+    constraint_rows = []
     if alg_given and alg_mask.any() and not _of_a_system(residual):
         _check_declared_algebraic(jacobian, t0, y0, yp0, r0, alg_mask, var_names)
+        constraint_rows = _constraint_rows(jacobian, t0, y0, yp0, r0, alg_mask)
     lu_kind = _lu_kind(linear_solver, residual, n)
     if lu_kind == "c":
         jacobian.dense_only = True      # the C LU takes dense matrices (n <= CLU_MAX_N)
@@ -646,6 +711,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     integ = make_integrator(c_step, fun, n, rtol, atol, error_mask, jacobian, lu, max_order,
                             max_step, var_names, no_growth_after_failure, nonnegative,
                             newton_iterate_retry)
+    integ.index_hint = _index_hint(constraint_rows)
     integ.reinit(t0, y, yp, t_end, first_step)
     solved = {"nre": 0, "nlu": 0}
     # output rows between steps are the step's interpolant (integ.interpolate), which keeps
@@ -790,6 +856,8 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
                 yps.append(ype)
             if ev.terminal:
                 message = f"A terminal event ({ev.name!r}) occurred at t = {te:.9g}."
+                _final_actions(fired, event_list, te, ye, ype, initialise, restart_mode,
+                               ts, ys, yps, t_eval is None)
                 break
             located = (ye, ype)
             ye, ype = _apply_actions(fired, event_list, te, ye, ype, initialise, restart_mode)
@@ -843,6 +911,8 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         if end_hit is not None and end_hit[2].terminal:
             message = (f"A terminal event ({end_hit[2].name!r}) occurred at t = "
                        f"{end_hit[0]:.9g}.")
+            _final_actions(end_hit[1], event_list, t_end, end_hit[3], end_hit[4], initialise,
+                           restart_mode, ts, ys, yps, t_eval is None)
         elif end_hit is not None:
             ye, ype = _apply_actions(end_hit[1], event_list, t_end, end_hit[3], end_hit[4],
                                      initialise, restart_mode)
@@ -876,6 +946,8 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         hint = ("an algebraic variable of a DAE of index above one (name the algebraic "
                 "variables with algebraic=[...] and leave them out of the test with "
                 "suppress_alg=True), " if error_mask is None else "")
+        if constraint_rows:
+            hint = _index_hint(constraint_rows) + "Otherwise: " + hint
         warnings.warn(PlausibilityWarning(
             f"{SOLVER_NAME}: {integ.netf} of {integ.nst} steps failed the local error test: "
             f"the step is held by something the error test cannot follow: {hint}a switch or "

@@ -498,6 +498,21 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
             if ev.terminal:
                 message = f"A terminal event ({ev.name!r}) occurred at t = {te:.9g}."
                 stopped = True      # the output times after it are not reached
+                if any(event_list[j].action is not None for j in fired):
+                    # the actions at the instant still run (see solve._final_actions)
+                    for j in fired:
+                        ye, ype = event_list[j].apply(te, ye, ype)
+                    ye, ype, _ = initialise(te, ye, ype, calc_initial if calc_initial is not
+                                            None else "algebraic")
+                    if t_eval is None:
+                        ts.append(te)
+                        ys.append(ye.copy())
+                        yps.append(ype.copy())
+                    else:
+                        for k in range(len(ts) - 1, -1, -1):
+                            if ts[k] < te:
+                                break
+                            ys[k], yps[k] = ye.copy(), ype.copy()
                 break
             # actions in a row at one instant (a sliding mode): stopped as the built-in solver
             # stops them, instead of running to max_steps

@@ -271,3 +271,10 @@ def test_a_run_whose_steps_mostly_fail_the_error_test_is_warned_about():
         quick = solve_dae(f, (0.0, 0.2), q0, qp0, rtol=1e-6, atol=1e-6, algebraic=[4],
                           suppress_alg=True)
     assert quick.stats["nsteps"] < 200
+
+
+@pytest.mark.parametrize("rtol", [[1e-8, 1e-6], "tight"])
+def test_an_rtol_that_is_not_one_number_is_named(rtol):
+    # a vector rtol gave a raw TypeError from float(); IDA also takes one rtol
+    with pytest.raises(ValueError, match=r"rtol must be one positive number .* through atol"):
+        solve_dae(lambda t, y, yp: yp + y, (0.0, 1.0), [1.0, 1.0], [-1.0, -1.0], rtol=rtol)

@@ -333,3 +333,28 @@ def test_a_bouncing_ball_past_its_zeno_time_stops_instead_of_falling_through(bac
     times = t1 + 2.0 * e * t1 * (1.0 - e ** np.arange(19)) / (1.0 - e)
     np.testing.assert_allclose(res.t_events, times, rtol=0.0, atol=1e-2 * rtol)
     assert res.success and res.y[:, 0].min() > -rtol
+
+
+@pytest.mark.parametrize("backend", ["pvgraph", "ida"])
+@pytest.mark.parametrize("t_eval", [None, np.array([0.0, 0.5, 1.0, 2.0])])
+def test_the_actions_at_a_terminal_instant_still_run(backend, t_eval):
+    """x' = 1 from 0; at x = 1 an event's action sets x = 10 and a terminal event stops the
+    run at the same instant. The action was dropped (x ended at 1), while a terminal event
+    1e-9 s later let it run: the run now ends at x = 10 either way, and a terminal event's
+    own action runs too."""
+    def set_ten(t, y, yp):
+        return np.array([10.0]), np.array([1.0])
+
+    def residual(t, y, yp):
+        return np.array([yp[0] - 1.0])
+    solve = _backend(backend)
+    for events in ([Event(lambda t, y, yp: y[0] - 1.0, action=set_ten, name="count"),
+                    Event(lambda t, y, yp: t - 1.0, terminal=True, name="stop")],
+                   [Event(lambda t, y, yp: y[0] - 1.0, terminal=True, action=set_ten,
+                          name="stop")]):
+        res = solve(residual, (0.0, 2.0), [0.0], [1.0], events=events, t_eval=t_eval)
+        assert "terminal event ('stop')" in res.message
+        assert res.t[-1] == pytest.approx(1.0, abs=1e-9)
+        assert res.y[-1, 0] == pytest.approx(10.0, abs=1e-9)
+        if t_eval is None:      # the state before the action is the row before
+            assert res.y[-2, 0] == pytest.approx(1.0, abs=1e-6)
