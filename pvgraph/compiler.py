@@ -683,9 +683,36 @@ def _signal_set(labels, specs, exposed):
     if not outputs:
         raise CircuitError(f"signal input(s) {inputs} are not driven by any output. Connect a "
                            f"source (Constant, Step, ...) or a component's output.")
+    _check_signal_units(labels, specs, outputs[0])
     src = E.Expr("sym", (), outputs[0])
     return [_Equation(E.Expr("sym", (), lab) - src, f"signal{{{outputs[0]}}}",
                       f"signal {outputs[0]} drives {lab}") for lab in inputs]
+
+
+def _check_signal_units(labels, specs, output):
+    """Refuse a signal connection whose ports declare units of different dimensions (a
+    pressure sensor's Pa into a flow input's m^3/s). Signals carry SI values, so only the
+    dimension matters; a port without a unit (a Gain, a Sum, a source) takes any."""
+    from .units import UnitError, parse_unit
+    dims = {}
+    for lab, spec in zip(labels, specs):
+        if spec.unit:
+            try:
+                dims[lab] = (parse_unit(spec.unit)[1], spec.unit)
+            except (UnitError, ValueError):
+                continue
+    if len({d for d, _ in dims.values()}) < 2:
+        return
+    # the output against each input; without a unit on the output, the inputs among themselves
+    first = output if output in dims else next(iter(dims))
+    for lab, (dim, unit) in dims.items():
+        if dim != dims[first][0]:
+            raise ConnectionError_(
+                f"signal {first!r} [{dims[first][1]}] is joined to {lab!r} [{unit}]: the "
+                f"ports' units are of different dimensions. A signal carries its SI value, "
+                f"so {lab!r} would read a {dims[first][1]} value as {unit}. Put a Gain "
+                f"between them (its k in {unit} per {dims[first][1]}), or connect it to a "
+                f"signal of its own unit.")
 
 
 def _check_symbols(equations, found, infos, modes):

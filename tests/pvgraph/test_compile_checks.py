@@ -164,3 +164,34 @@ def test_flow_sources_in_series_are_told_as_such_not_as_a_missing_tank():
     d.connect(p.b, plug.port)
     with pytest.raises(StructureError, match=r"(?s)node\{p.b, pl.port\}.*contradicts.*closed end"):
         d.compile()
+
+
+def test_a_signal_joining_ports_of_different_units_is_refused():
+    """A pressure sensor's y [Pa] wired into a flow input's u [m^3/s] ran: it asked for
+    1e6 m^3/s and the only hint was a 7e10 bar warning on the hydraulics. Ports without a
+    unit (a Gain) take any signal, so a Gain between them is the way."""
+    from pvgraph import ConnectionError_
+    from pvgraph.components.hydraulic import (FlowInput, Orifice, PressureSensor,
+                                              PressureSource, VolumeNode)
+    from pvgraph.components.signal import Gain
+
+    def build(gain):
+        c = Circuit("wire")
+        c.add("src", PressureSource(p0="10 bar"))
+        c.add("o", Orifice(A="1 mm^2"))
+        c.add("n", VolumeNode(V="1 L"))
+        c.add("ps", PressureSensor())
+        c.add("fi", FlowInput())
+        c.connect("src.port", "o.a")
+        c.connect("o.b", "n.port", "ps.port", "fi.port")
+        if gain:
+            c.add("g", Gain(k=-1e-10))
+            c.connect("ps.y", "g.u")
+            c.connect("g.y", "fi.u")
+        else:
+            c.connect("ps.y", "fi.u")
+        return c
+    with pytest.raises(ConnectionError_, match=r"signal 'ps.y' \[Pa\] is joined to 'fi.u' "
+                                               r"\[m\^3/s\]: .* Put a Gain between them"):
+        build(False).compile()
+    build(True).compile()
