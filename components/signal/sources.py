@@ -123,14 +123,44 @@ class TimeTableParams(Params):
 
 
 class TimeTable(Component):
-    """Signal interpolated in a table of time, held constant beyond its ends."""
+    """Signal interpolated in a table of time, held constant beyond its ends.
+
+    Each knot is a time event (as Modelica's ``CombiTimeTable`` makes them): the condition
+    ``t - t_next`` with the index of the next knot held in a mode, so the solver stops at
+    every knot however long its steps. A run at rest otherwise steps over a short plateau of
+    the table entirely (a 50 ms command at 2 s seen as 0 by a run of 11 steps). A run that
+    starts after some knots starts at the next one ahead.
+    """
 
     Params = TimeTableParams
     ports = {"y": SignalOut("the interpolated signal")}
+    modes = {"knot": 0.0}
 
     def equations(self, v, p):
         table = E.Table(p.t, p.y, method=p.method, name=f"{self.path} y(t)")
+        # the time of the next knot by its index (past the last: never)
+        n = len(p.t)
+        times = E.Table(tuple(float(k) for k in range(n + 1)),
+                        tuple(p.t) + (p.t[-1] + 1e12,), name=f"{self.path} knots")
+        v.event("knot", v.t - E.interp(times, v.mode("knot")), direction=1,
+                action=_NextKnot(tuple(p.t)), at_start=True)
         return [v.y - E.interp(table, v.t)]
+
+
+class _NextKnot:
+    """The action at a knot of a TimeTable: the next one ahead. At the start of a run past
+    the first knots, the first knot after the start time."""
+
+    def __init__(self, times):
+        self.times = times
+
+    def __call__(self, view):
+        t = view.t
+        if t is None or not getattr(view, "starting", False):
+            view["knot"] = view["knot"] + 1.0
+            return
+        slack = 1e-9 * max(abs(t), self.times[-1] - self.times[0])
+        view["knot"] = float(sum(1 for tk in self.times if tk <= t + slack))
 
 
 class SineParams(Params):

@@ -234,3 +234,26 @@ def test_a_late_start_with_a_period_changed_at_run_time_starts_where_that_train_
                    t_eval=[0.25, 1.25])
     assert sol["pwm.y"][0] == 1.0
     assert (sol["i.y"][-1] - sol["i.y"][0]) == pytest.approx(0.3, abs=1e-9)
+
+
+@pytest.mark.parametrize("solver", ["pvgraph", "ida"])
+@pytest.mark.parametrize("t0", [0.0, 2.0005])
+def test_a_short_plateau_of_a_time_table_is_not_stepped_over(solver, t0):
+    """A command of 0 until 2 s, up to 1 in 1 ms, held 50 ms, down in 1 ms, into a lag of
+    10 ms at rest: the run took 11 steps and saw nothing (the integral of y 0 against
+    0.051, on both solvers). Every knot is now an event. A run starting inside the rise
+    starts at the next knot ahead."""
+    if solver == "ida":
+        pytest.importorskip("sksundae")
+    from pvgraph.simulate import simulate
+    tt = (0.0, 2.0, 2.001, 2.051, 2.052, 5.0)
+    c = Circuit("tt")
+    c.add("src", TimeTable(t=tt, y=(0.0, 0.0, 1.0, 1.0, 0.0, 0.0)))
+    c.add("lag", FirstOrderLag(tau=0.01))
+    c.connect("src.y", "lag.u")
+    sol = simulate(c, 5.0, t_start=t0, rtol=1e-6, solver=solver)
+    area = 0.051 - (0.5 * 0.5 ** 2 * 1e-3 if t0 > 0 else 0.0)   # the part of the rise before t0
+    assert np.trapezoid(sol["lag.y"], sol.t) == pytest.approx(area, rel=2e-3)
+    assert sol["lag.y"].max() == pytest.approx(1.0 - np.exp(-5.0), abs=2e-3)
+    assert [e.t for e in sol.events if e.name.endswith("knot")] == pytest.approx(
+        [tk for tk in tt if tk > t0], abs=1e-9)
