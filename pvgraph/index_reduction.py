@@ -93,7 +93,8 @@ SWITCH_RATIO = 0.3           # ... below this one the states are chosen again (s
                              # a Cartesian pendulum's phase error after 3 swings from 1.8 rad
                              # at rtol 1e-6 is 7.8e-3 m switching at 0.1, 3.8e-4 at 0.3
 PIVOT_RANK_TOL = 1e-9        # relative size of the last pivot of a numerically full-rank block
-MONITOR_MAX_BLOCK = 3        # larger non-constant pivot blocks are not watched (cost of det)
+MONITOR_MAX_BLOCK = 8        # larger non-constant pivot blocks are not watched (their
+                             # determinant's graph grows as m 2^m: 1024 products at 8)
 START_PREFERENCE = {0: 1.0, 1: 0.7, 2: 0.4}   # column weights: given starts stay states
 ANGLE_PREFERENCE = 1e-6      # column weight of an angle or angular speed: they stay states
 ORDER_PREFERENCE = 1e4       # column weight per derivative order above one: dummy those first,
@@ -1001,16 +1002,32 @@ def _matching(cols, n_var):
 
 
 def _det(block):
-    """Symbolic determinant of a small square block (Laplace expansion on the first row)."""
-    k = len(block)
-    if k == 1:
-        return block[0][0]
-    total = E.ZERO
-    for j in range(k):
-        minor = [row[:j] + row[j + 1:] for row in block[1:]]
-        term = block[0][j] * _det(minor)
-        total = total + term if j % 2 == 0 else total - term
-    return total
+    """Symbolic determinant of a square block: Laplace expansion along the rows, each minor
+    (the last rows on a set of columns) built once and shared, so the graph has at most
+    m 2^(m-1) products for m rows, not m! (zero entries add none)."""
+    m = len(block)
+    memo: dict[int, E.Expr] = {}
+
+    def minor(row, cols):
+        """The determinant of rows ``row..m-1`` on the columns in the bit set ``cols``."""
+        if row == m:
+            return E.ONE
+        got = memo.get(cols)
+        if got is not None:
+            return got
+        total = E.ZERO
+        sign = 1.0
+        for j in range(m):
+            if not cols >> j & 1:
+                continue
+            entry = block[row][j]
+            if not E.is_const(entry, 0.0):
+                term = entry * minor(row + 1, cols & ~(1 << j))
+                total = total + term if sign > 0 else total - term
+            sign = -sign
+        memo[cols] = total
+        return total
+    return minor(0, (1 << m) - 1)
 
 
 # numbers at the start point -------------------------------------------------------------------
