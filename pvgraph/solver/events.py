@@ -51,7 +51,9 @@ class Event:
     action : callable or None
         ``action(t, y, yp)`` called at the event. It may switch mode state captured by the
         residual and may return a new ``(y, yp)``. The solver then recomputes consistent
-        initial conditions and restarts at order 1.
+        initial conditions and restarts at order 1 (a DAE of index two is not made consistent
+        by that: its action must return consistent ``(y, yp)``, hidden constraints included,
+        as IDA needs after ``IDAReInit``).
     name : str
         Used in the event records; defaults to ``fun.__name__``.
     """

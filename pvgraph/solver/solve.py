@@ -557,7 +557,18 @@ def _apply_actions(fired, event_list, te, ye, ype, initialise, mode):
         return initialise(te, ye, ype, mode)
     except InitializationError as exc:
         names = ", ".join(repr(event_list[j].name) for j in fired)
-        raise InitializationError(f"after event {names} at t = {te:.9g}: {exc}") from exc
+        text = str(exc)
+        index_two = "A DAE of index two starts only"
+        if index_two in text:
+            # inside a run the values are the action's, not y0 and yp0
+            text = text[:text.index(index_two)] + (
+                "A DAE of index two restarts only from values that satisfy it (hidden "
+                "constraints included, y' too), which the state at an event is not: it is "
+                "the steps' interpolant, and the index-two variables are not error-controlled "
+                "there. Return such values from the action (y put back on the constraints, "
+                "y' and the multipliers from the equations), as IDA needs them after "
+                "IDAReInit; they are then kept.")
+        raise InitializationError(f"after event {names} at t = {te:.9g}: {text}") from exc
 
 
 def _final_actions(fired, event_list, te, ye, ype, initialise, mode, ts, ys, yps, steps):

@@ -168,3 +168,26 @@ def test_an_index_three_pendulum_given_to_solve_dae_is_named_as_such():
                                               r"alone .* index is two or more"):
             solve_dae(pendulum, (0.0, 10.0), *start, rtol=1e-6, atol=1e-6, algebraic=[4],
                       suppress_alg=True, calc_initial=None)
+
+
+def test_an_index_two_restart_after_an_action_asks_the_action_for_consistent_values():
+    """The index-two pendulum (x u + y v = 0) with an event at x = 0 whose action changes
+    nothing: the state at the event is the steps' interpolant, far from consistent for the
+    multiplier, and the restart failed advising to "give such y0 and yp0", which does not
+    apply inside a run. It now says the action must return consistent values."""
+    from pvgraph.solver import Event
+    g, th0 = 9.81, np.pi / 4
+    x0, y0, lam0 = np.sin(th0), -np.cos(th0), g * np.cos(th0)
+
+    def pendulum(t, s, sp):
+        x, y, u, v, lam = s
+        return np.array([sp[0] - u, sp[1] - v, sp[2] + lam * x, sp[3] + lam * y + g,
+                         x * u + y * v])
+    ev = Event(lambda t, s, sp: s[0], direction=-1, action=lambda t, s, sp: None, name="x0")
+    with pytest.raises(InitializationError) as info:
+        solve_dae(pendulum, (0.0, 2.0), [x0, y0, 0.0, 0.0, lam0],
+                  [0.0, 0.0, -lam0 * x0, -lam0 * y0 - g, 0.0], rtol=1e-6, atol=1e-6,
+                  algebraic=[4], suppress_alg=True, calc_initial=None, events=[ev])
+    text = str(info.value)
+    assert text.startswith("after event 'x0' at t = 0.52156")
+    assert "Return such values from the action" in text and "give such y0" not in text
