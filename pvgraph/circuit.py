@@ -30,7 +30,7 @@ from pydantic import BaseModel
 
 from .component import Component, Port, PortRef
 from .errors import (CircuitError, ConnectionError_, ParameterError, PlausibilityWarning,
-                     StructureError, outside_stacklevel)
+                     PvgraphError, StructureError, outside_stacklevel)
 
 __all__ = ["Circuit", "reuse_compiled"]
 
@@ -969,15 +969,40 @@ _FLUID_NAMES = frozenset(("rho", "nu", "beta", "air", "kappa", "p_vap", "p_atm",
                           "p_min_abs"))
 
 
+_FLUID_MODELS: list = []     # the fluid parameter models a component library registers
+
+
+def register_fluid_model(model) -> None:
+    """Register ``model`` (a pydantic model with fields named as fluid properties, its own
+    message on a bad value) to check the properties of a circuit's fluid that none of its
+    parts declares (the component library registers its ``Fluid``)."""
+    if model not in _FLUID_MODELS:
+        _FLUID_MODELS.append(model)
+
+
 def _check_fluid_values(circuit, values) -> None:
     """Each fluid property checked by the parameter model of a part that declares it (a part
     given its own value, too), so that a value no part could take is refused now rather than
-    where a part is added or ``override`` is asked later."""
+    where a part is added or ``override`` is asked later; the others by a registered fluid
+    model (see :func:`register_fluid_model`), so that nothing wrong is kept (and saved)
+    where no part takes it yet."""
     done = set()
     for path, comp in _leaves(circuit):
         for k in values.keys() & type(comp.params).model_fields.keys() - done:
             _fluid_into(comp, {k: values[k]}, path, override=True)    # raises, changes nothing
             done.add(k)
+    for model in _FLUID_MODELS:
+        rest = {k: v for k, v in values.items()
+                if k not in done and k in getattr(model, "model_fields", {})}
+        if not rest:
+            continue
+        try:
+            model(**rest)
+        except PvgraphError as exc:
+            raise ParameterError(f"circuit {circuit.path!r}: its fluid: {exc}") from None
+        except ValueError as exc:       # a pydantic ValidationError
+            raise ParameterError(f"circuit {circuit.path!r}: its fluid: {exc}") from None
+        done.update(rest)
 
 
 def _fluid_into(comp, values, where, override=False):

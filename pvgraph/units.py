@@ -423,8 +423,10 @@ def _is_pint(value) -> bool:
 def to_unit(value, unit: str, what: str = "value") -> float:
     """``value`` (a number, ``"150 bar"`` or a pint Quantity) expressed in ``unit``.
 
-    A plain number is taken to be in ``unit`` already. A quantity of another dimension raises
-    :class:`UnitError` naming ``what``, both units and both dimensions.
+    A plain number is taken to be in ``unit`` already; a string without a unit (``"150"``)
+    only where ``unit`` has no dimension (a string is written to carry a unit: one left off
+    is refused, not read as SI). A quantity of another dimension raises :class:`UnitError`
+    naming ``what``, both units and both dimensions.
     """
     factor, dim, angle = _parse(unit)
     if _is_pint(value):
@@ -437,6 +439,15 @@ def to_unit(value, unit: str, what: str = "value") -> float:
                             f"or one with a unit, e.g. '150 bar')")
         number, text = float(m.group(1)), m.group(2)
         if not text:
+            if any(dim) or angle:
+                # a string is written to carry a unit: one without is a unit left off
+                # ("150" for "150 bar" read as 150 Pa), not an SI number
+                raise UnitError(
+                    f"{what} = {value!r} has no unit, and {what} is {kind(dim)} [{unit}]: "
+                    f"write the unit meant ('{m.group(1)} {unit}'" + (
+                        f", or another such as '{m.group(1)} {_example_unit(unit)}'"
+                        if _example_unit(unit) != unit else "") +
+                    f"), or the number {m.group(1)} for {unit}")
             return number
         try:
             f, got, got_angle = _parse(text)
@@ -451,6 +462,16 @@ def to_unit(value, unit: str, what: str = "value") -> float:
     if got_angle != angle:
         si = _angle_reading(si, got, got_angle, angle, what, shown, unit)
     return si / factor
+
+
+_EXAMPLE_UNITS = {"Pa": "bar", "m^3/s": "L/min", "m^3": "L", "m^2": "mm^2", "m": "mm",
+                  "rad/s": "rpm", "rad": "deg", "m^3/rad": "cm^3/rev", "N": "kN", "kg/m^3":
+                  "kg/m^3", "s": "s", "m^2/s": "cSt"}
+
+
+def _example_unit(unit: str) -> str:
+    """A unit an engineer writes for a quantity declared in ``unit`` (for messages)."""
+    return _EXAMPLE_UNITS.get(unit, unit)
 
 
 def to_si(value, what: str = "value") -> float:

@@ -56,6 +56,7 @@ import warnings
 from pydantic import Field, model_validator
 
 from pvgraph import expr as E
+from pvgraph.circuit import register_fluid_model
 from pvgraph.component import Params
 from pvgraph.errors import PlausibilityWarning, outside_stacklevel
 from pvgraph.laws import smooth_max
@@ -143,6 +144,9 @@ class Fluid(FluidCompliance):
     def speed_of_sound(self) -> float:
         """Wave speed ``sqrt(beta / rho)`` of the pure oil [m/s]."""
         return (self.beta / self.rho) ** 0.5
+
+
+register_fluid_model(Fluid)     # a circuit's fluid is checked by it (Circuit.use_fluid)
 
 
 MINERAL_OIL = Fluid()

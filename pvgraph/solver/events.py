@@ -351,6 +351,13 @@ def check_times(t0, t_end, t_eval, max_step, first_step):
         raise ValueError(f"t_eval must be sorted: t_eval[{k + 1}] = {float(t_eval[k + 1])!r} "
                          f"comes after t_eval[{k}] = {float(t_eval[k])!r}")
     if t_eval.size and (t_eval[0] < t0 or t_eval[-1] > t_end):
-        raise ValueError(f"t_eval must lie within t_span [{t0!r}, {t_end!r}], got "
-                         f"[{float(t_eval[0])!r}, {float(t_eval[-1])!r}]")
+        # times past an end by rounding only (np.arange(0, t_end + dt, dt) ends at
+        # 0.30000000000000004 for 0.3) are that end
+        fuzz = 64.0 * UROUND * max(abs(t0), abs(t_end), t_end - t0)
+        t_eval = t_eval.copy()
+        t_eval[(t_eval < t0) & (t_eval >= t0 - fuzz)] = t0
+        t_eval[(t_eval > t_end) & (t_eval <= t_end + fuzz)] = t_end
+        if t_eval[0] < t0 or t_eval[-1] > t_end:
+            raise ValueError(f"t_eval must lie within the run's interval [{t0!r}, {t_end!r}], "
+                             f"got [{float(t_eval[0])!r}, {float(t_eval[-1])!r}]")
     return t_eval

@@ -18,7 +18,7 @@ from pvgraph.units import (BAR, LPM, UnitError, angle_power, declared_unit, disp
 @pytest.mark.parametrize("text, unit, si", [
     ("150 bar", "Pa", 150e5), ("0.5 L", "m^3", 0.5e-3), ("10 L/min", "m^3/s", 10 / 60e3),
     ("2.2 mm^2", "m^2", 2.2e-6), ("2.2 mm2", "m^2", 2.2e-6), ("8 cm^3", "m^3", 8e-6),
-    ("3 MPa", "Pa", 3e6), ("1e5", "Pa", 1e5), ("-3 mm", "m", -3e-3),
+    ("3 MPa", "Pa", 3e6), ("1e5 Pa", "Pa", 1e5), ("-3 mm", "m", -3e-3),
     ("0.45 L/(min bar)", "m^3/(s Pa)", 0.45e-3 / 60 / 1e5), ("100 psi", "Pa", 689475.7293168361),
     ("20 N s/m", "N s/m", 20.0), ("3000 rpm", "rad/s", 100 * math.pi),
 ])
@@ -118,7 +118,9 @@ def test_angles_are_counted_so_nothing_is_two_pi_off(given, unit, expected):
 @pytest.mark.parametrize("given, unit, match", [
     ("28 cm^3", "m^3/rad", r"gives no angle, but D is per angle \[m\^3/rad\].*'... /rev'"),
     ("100 N m", "N m/rad", r"gives no angle, but D is per angle"),
-    ("0.5", "rad", None),
+    (0.5, "rad", None),
+    ("0.5", "rad", r"'0.5' has no unit, and D is dimensionless \[rad\]: write the unit meant "
+                   r"\('0.5 rad', or another such as '0.5 deg'\)"),
     ("1 rad", "-", r"counts an angle, but D \[-\] does not"),
 ])
 def test_a_missing_or_extra_angle_is_refused_by_name(given, unit, match):
@@ -329,3 +331,15 @@ def test_unit_errors_name_the_field_once_and_suggest_minutes():
 ])
 def test_per_units_and_powers_written_without_a_caret(text, unit, si):
     assert to_unit(text, unit) == pytest.approx(si, rel=1e-12)
+
+
+@pytest.mark.parametrize("build, field", [
+    (lambda: VolumeNode(V="0.5"), "V = '0.5' has no unit, and V is a volume"),
+    (lambda: Orifice(A="2"), "A = '2' has no unit, and A is an area"),
+    (lambda: Tank(p0="150"), "p0 = '150' has no unit, and p0 is a pressure")])
+def test_a_quantity_string_without_its_unit_is_refused(build, field):
+    """"150" for "150 bar" was read as 150 Pa (and "1500" rpm as 1500 rad/s), inside the
+    bounds, without a word; a string is written to carry a unit. A number stays SI."""
+    with pytest.raises(ParameterError, match=re.escape(field) + r".* or the number"):
+        build()
+    assert VolumeNode(V=0.5).params.V == 0.5

@@ -217,10 +217,14 @@ def test_a_fluid_a_part_refuses_changes_nothing():
     with pytest.raises(CircuitError, match=r"override=\.\.\.\) takes True or False"):
         c.use_fluid({"rho": 900.0}, override="yes")
     d = Circuit("y")
-    d.use_fluid({"beta": 1e3})          # no part yet: kept for the parts added later
-    with pytest.raises(ParameterError, match="the circuit's fluid does not fit"):
-        d.add("node", VolumeNode(V="1 L"))
-    assert "node" not in d
+    # no part yet: the fluid's own model refuses it (it was kept, and saved, where no part
+    # took it), and the circuit keeps none
+    with pytest.raises(ParameterError, match=r"circuit 'y': its fluid: .*\n  beta = 1000.0: "
+                                             r"Input should be greater than 1000000"):
+        d.use_fluid({"beta": 1e3})
+    assert d._fluid is None
+    d.add("node", VolumeNode(V="1 L"))
+    assert d["node"].params.beta == VolumeNode(V="1 L").params.beta
 
 
 def test_use_fluid_takes_fluid_properties_only_and_checks_each_value():
@@ -264,3 +268,21 @@ def test_a_chamber_cannot_start_below_the_vapour_pressure():
     with pytest.raises(ParameterError, match=r"p0 = -100000 Pa"):
         VolumeNode(V=1e-3, p0=-1e5)
     assert VolumeNode(V=1e-3, p0=-P_ATM + P_VAP).params.p0 == -P_ATM + P_VAP
+
+
+def test_a_circuits_fluid_no_part_takes_is_checked_by_the_fluid_model():
+    """{"rho": "1000 bar", "nu": -1, "beta": "abc"} on a circuit with no part that takes
+    them (yet) was kept and saved without a word; every property is now checked by the
+    library's Fluid (units, bounds), and nothing changes on a refusal."""
+    from pvgraph import Circuit, ParameterError
+    from pvgraph.components import FlowSource
+    c = Circuit("demo")
+    c.add("pump", FlowSource(Q="1 L/min"))
+    with pytest.raises(ParameterError) as info:
+        c.use_fluid({"rho": "1000 bar", "nu": -1, "beta": "abc"})
+    text = str(info.value)
+    assert "rho = '1000 bar' is a pressure, but rho is a density" in text
+    assert "nu = -1: Input should be greater than 0" in text and "beta = 'abc'" in text
+    assert c._fluid is None
+    c.use_fluid({"rho": "1000 kg/m^3"})
+    assert c._fluid == {"rho": "1000 kg/m^3"}

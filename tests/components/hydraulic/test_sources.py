@@ -97,7 +97,7 @@ def test_a_tank_given_one_atmosphere_is_told_that_pressures_are_gauge():
             as told:
         Tank(p0="1 atm")
     assert told[0].filename == __file__
-    for written in ("1 bar", "14.7 psi", "1.013 bar", "101325"):   # the same mistake
+    for written in ("1 bar", "14.7 psi", "1.013 bar", 101325):   # the same mistake
         with pytest.warns(PlausibilityWarning, match=r"about one atmosphere .* gauge"):
             Tank(p0=written)
     with warnings.catch_warnings():

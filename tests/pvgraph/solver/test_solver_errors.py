@@ -105,7 +105,7 @@ def _backends():
 @pytest.mark.parametrize("options, message", [
     ({"t_eval": [0.5, float("nan")]}, r"t_eval must be finite: t_eval\[1\] = nan"),
     ({"t_eval": [0.5, 0.2]}, r"t_eval must be sorted: t_eval\[1\] = 0.2 comes after"),
-    ({"t_eval": [0.5, 2.0]}, r"t_eval must lie within t_span \[0.0, 1.0\]"),
+    ({"t_eval": [0.5, 2.0]}, r"t_eval must lie within the run.s interval \[0.0, 1.0\]"),
     ({"first_step": -1.0}, "first_step must be positive and finite, got -1.0"),
     ({"max_step": 0.0}, "max_step must be positive, got 0.0"),
 ])
@@ -278,3 +278,10 @@ def test_an_rtol_that_is_not_one_number_is_named(rtol):
     # a vector rtol gave a raw TypeError from float(); IDA also takes one rtol
     with pytest.raises(ValueError, match=r"rtol must be one positive number .* through atol"):
         solve_dae(lambda t, y, yp: yp + y, (0.0, 1.0), [1.0, 1.0], [-1.0, -1.0], rtol=rtol)
+
+
+def test_output_times_past_an_end_by_rounding_are_that_end():
+    # np.arange(0, 0.3 + 0.1, 0.1) ends at 0.30000000000000004: it was refused
+    res = solve_dae(lambda t, y, yp: yp + y, (0.0, 0.3), [1.0], [-1.0],
+                    t_eval=np.arange(0.0, 0.3 + 0.1, 0.1))
+    assert res.t[-1] == 0.3 and res.y[-1, 0] == pytest.approx(np.exp(-0.3), rel=1e-5)
