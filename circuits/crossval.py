@@ -71,6 +71,7 @@ import numpy as np
 from scipy.optimize import least_squares, nnls
 
 from pvgraph.analysis import steady_state
+from pvgraph.analysis.sweep import MAX_PROCESS_WORKERS
 from pvgraph.errors import PvgraphError
 from pvgraph.units import bar, lpm, lpm_per_bar, to_bar, to_lpm
 
@@ -644,6 +645,7 @@ def cross_validate(groupings=("voltage", "load"), base: PVG32Params | None = Non
                           "meter_out": meter_out}))
     t0 = time.perf_counter()
     records, folds = [], []
+    workers = max(1, min(workers, len(jobs), MAX_PROCESS_WORKERS))   # no idle processes
     if workers > 1:
         with ProcessPoolExecutor(max_workers=workers) as pool:
             for job, (rec, fold) in zip(jobs, pool.map(_fold, jobs)):

@@ -176,6 +176,18 @@ def build_rig(p: PVG32Params | None = None, *, load: Circuit | None = None,
     """
     p = p or report_tuned()
     load = load if load is not None else laminar_load(p)
+    if not isinstance(load, Circuit):
+        from pvgraph.errors import CircuitError
+        raise CircuitError(f"build_rig: load must be a Circuit exposing hydraulic ports 'A' and "
+                           f"'B' (e.g. laminar_load(p)), got {type(load).__name__} {load!r}")
+    # a voltage, as the command line and the scenario sweep read it ("4.2 bar" was 420 000 V)
+    from pvgraph.errors import ParameterError
+    from pvgraph.units import number_in
+    U_input = number_in(U_input, "V", "build_rig U_input")
+    if not 0.0 <= U_input <= p.rig.supply_voltage:
+        raise ParameterError(f"build_rig: U_input = {U_input!r} V is outside 0 .. "
+                             f"{p.rig.supply_voltage:g} V (the PVE's input range, up to its "
+                             f"supply voltage)")
     for port in ("A", "B"):
         if port not in load.ports:
             from pvgraph.errors import CircuitError

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pvgraph.components.hydraulic import MINERAL_OIL, CavitationWarning
+from pvgraph.analysis.sweep import MAX_PROCESS_WORKERS
 from pvgraph.errors import PvgraphError
 from pvgraph.simulate import simulate
 from pvgraph.units import bar, to_bar, to_lpm
@@ -219,6 +220,8 @@ def validate(params: PVG32Params | None = None, names: list[str] | None = None, 
     params = params or report_tuned()
     jobs = [(n, params, law) for n in names]
     workers = workers if workers is not None else min(2, len(jobs))
+    # no more processes than scenarios, nor than a process pool takes everywhere
+    workers = max(1, min(workers, len(jobs), MAX_PROCESS_WORKERS))
     results = {}
     if workers <= 1:
         for job in jobs:

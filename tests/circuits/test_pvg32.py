@@ -189,3 +189,39 @@ def test_a_sweep_point_not_steady_at_8_s_is_compared_at_its_steady_state():
     from pvgraph.circuits.validation import comparison_records
     assert {rec.get("compared_at_s") for rec in comparison_records([r])} == {24.0}
     assert all("compared_at_s" not in rec for rec in comparison_records([longer]))
+
+
+@pytest.mark.parametrize("given, match", [
+    ("4.2 bar", r"U_input = '4.2 bar' is a pressure, but build_rig U_input is a voltage"),
+    (-1.0, r"U_input = -1.0 V is outside 0 .. 11.5 V")])
+def test_the_rigs_input_voltage_is_read_as_a_voltage(given, match):
+    """build_rig(U_input="4.2 bar") built the rig with a 420 000 V input (the signal block
+    takes any quantity); the command line refused the same value."""
+    from pvgraph.errors import PvgraphError
+    with pytest.raises(PvgraphError, match=match):
+        build_rig(U_input=given)
+    assert build_rig(U_input="4.2 V")["U_input"].params.k == 4.2
+    with pytest.raises(PvgraphError, match=r"load must be a Circuit .* got int 5"):
+        build_rig(load=5)
+
+
+def test_validate_starts_no_more_processes_than_scenarios(monkeypatch):
+    """validate(workers=100000) for one scenario started over a thousand processes."""
+    import pvgraph.circuits.validation as V
+    asked = []
+
+    class Pool:
+        def __init__(self, max_workers):
+            asked.append(max_workers)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def map(self, fn, jobs):
+            return map(fn, jobs)
+    monkeypatch.setattr(V, "ProcessPoolExecutor", Pool)
+    results = validate(names=["test-1", "test-2"], workers=100000)
+    assert asked == [2] and len(results) == 2
