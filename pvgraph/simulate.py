@@ -835,9 +835,11 @@ def _check_pressures(sol: Solution) -> None:
         listed = "; ".join(f"{node(n)} reaches {v / 1e5:.3g} bar (beyond {PRESSURE_LIMIT / 1e5:.0f} "
                            f"bar from t = {t:.4g} s)" for v, n, t in worst[:3])
         warnings.warn(PlausibilityWarning(
-            f"{system.name}: implausible pressure: {listed}. A flow source or pump feeding a "
-            f"closed valve or a dead end with no leakage and no relief builds pressure without "
-            f"bound; add a relief valve (CheckValve to tank), a leakage area or an outlet. "
+            f"{system.name}: implausible pressure: {listed}. A flow source or pump pushes its "
+            f"flow through whatever is open: an outlet too small for it (an orifice or valve "
+            f"sized for less flow) holds such a pressure, and a closed valve or dead end with "
+            f"no leakage and no relief builds it without bound; give the flow a way out sized "
+            f"for it, or a relief valve (CheckValve to tank). "
             f"Where such a pressure is meant (an intensifier's area ratio), raise "
             f"pvgraph.simulate.PRESSURE_LIMIT."), stacklevel=3)
 

@@ -742,8 +742,10 @@ def _check_pressures(system, y):
         listed = "; ".join(f"{n} is {v / 1e5:.3g} bar" for v, n in worst[:3])
         warnings.warn(PlausibilityWarning(
             f"{system.name}: implausible steady pressure (beyond {PRESSURE_LIMIT / 1e5:.0f} "
-            f"bar): {listed}. A flow source or pump feeding a closed valve or a dead end holds "
-            f"a steady state only through leakage; add a relief valve or an outlet. Where such "
+            f"bar): {listed}. A flow source or pump pushes its flow through whatever is open: "
+            f"an outlet too small for it (an orifice or valve sized for less flow), or a "
+            f"closed valve or dead end that only leakage passes; give the flow a way out "
+            f"sized for it, or a relief valve. Where such "
             f"a pressure is meant (an intensifier's area ratio), raise "
             f"pvgraph.simulate.PRESSURE_LIMIT."),
             stacklevel=3)
