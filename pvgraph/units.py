@@ -249,7 +249,8 @@ def _symbol(name: str):
 
 #: spellings of units met on data sheets and in other languages, by their lower case
 _MISSPELT = {"mn": "min", "min": "min", "mins": "min", "hr": "h", "hrs": "h", "sec": "s",
-             "secs": "s", "ltr": "L", "lt": "L"}
+             "secs": "s", "ltr": "L", "lt": "L", "litre": "L", "liter": "L", "litres": "L",
+             "liters": "L", "l": "L"}
 
 
 def _close_units(name: str) -> str:
@@ -300,7 +301,7 @@ def _parse(text: str) -> tuple[float, tuple, int]:
     """``(factor to SI, dimension, angle power)`` of a unit string."""
     src = str(text).strip()
     if re.search(r"\(\s*[gGaA]\s*\)", src) or \
-            re.fullmatch(r"(?i)(bar|psi|[km]?pa)\s*[ga]", src):   # "bar(g)", "psig", "bara"
+            re.fullmatch(r"(?i)(bar|psi|[km]?pa)\s*([ga]|abs|gauge)", src):   # "bara", "bar abs"
         raise UnitError(f"unit {text!r}: a gauge or absolute mark is not read; pressures are "
                         f"gauge here (0 = atmospheric): write the pressure above the atmosphere "
                         f"without it")
@@ -314,6 +315,9 @@ def _parse(text: str) -> tuple[float, tuple, int]:
     while pos < len(src):
         m = _TOKEN.match(src, pos)
         if not m or m.end() == pos:
+            if src[pos] == "," and src[pos + 1:pos + 2].isdigit():
+                raise UnitError(f"cannot read {text!r}: write a decimal point, not a comma "
+                                f"('0.5 L' for '0,5 L')")
             raise UnitError(f"cannot read unit {text!r} at {src[pos:]!r}")
         tokens.append(m.group(1))
         pos = m.end()

@@ -343,3 +343,14 @@ def test_a_quantity_string_without_its_unit_is_refused(build, field):
     with pytest.raises(ParameterError, match=re.escape(field) + r".* or the number"):
         build()
     assert VolumeNode(V=0.5).params.V == 0.5
+
+
+@pytest.mark.parametrize("written, told", [
+    ("0.5 litre", "unknown unit 'litre'; did you mean 'L'?"),
+    ("0,5 L", "write a decimal point, not a comma ('0.5 L' for '0,5 L')"),
+    ("150 bar abs", "a gauge or absolute mark is not read; pressures are gauge here")])
+def test_units_written_as_on_a_data_sheet_get_a_way_out(written, told):
+    # "litre" and a decimal comma had no suggestion; "bar abs" was an unknown unit 'abs'
+    unit = "Pa" if "bar" in written else "m^3"
+    with pytest.raises(UnitError, match=re.escape(told)):
+        to_unit(written, unit, "x")
