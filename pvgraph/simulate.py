@@ -215,6 +215,9 @@ def _atomic_write(path, write):
 def _seconds(value, what: str) -> float:
     """A time [s]: a number, or a quantity (``"2 s"``, ``"500 ms"``, a pint Quantity)."""
     from .units import UnitError, to_unit
+    if isinstance(value, bool):      # True is 1 to Python, not a time
+        raise PvgraphError(f"{what} = {value!r}: give a time in seconds (a number, or a "
+                           f"quantity such as '2 s')")
     try:
         return float(to_unit(value, "s", what))
     except UnitError as exc:

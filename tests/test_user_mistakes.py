@@ -506,6 +506,8 @@ def test_vectors_of_the_wrong_length_and_times_with_units():
         simulate(system, "2 bar")
     with pytest.raises(PvgraphError, match="t_end = None: give a time in seconds"):
         simulate(system, None)
+    with pytest.raises(PvgraphError, match="t_end = True: give a time in seconds"):
+        simulate(system, True)      # ran 1 s
 
 
 def test_a_signal_loop_with_gain_one_names_the_loop():
