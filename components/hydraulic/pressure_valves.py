@@ -89,23 +89,31 @@ class ReliefValveParams(_RestrictionParams):
                        description="Area the pressure acts on (spool or seat) [m^2]")
     k: float = Field(..., gt=0.0, le=1e9, description="Spring rate [N/m]")
     x_max: float = Field(..., gt=0.0, le=0.1, description="Largest opening stroke [m]")
-    w: float = Field(..., gt=0.0, le=1.0,
-                     description="Area gradient (flow gain) of the opening [m^2/m]")
+    w: Optional[float] = Field(
+        None, gt=0.0, le=1.0,
+        description="Area gradient (flow gain) of the opening [m^2/m] (or Q_rated instead)")
     theta: float = Field(math.radians(69.0), ge=0.0, le=math.pi / 2,
                          description="Jet angle of the flow force [rad] (pi/2: no flow force)")
     Q_rated: Optional[float] = Field(
         None, gt=0.0, le=1.0,
         description="Flow the valve passes fully open at p_full, in the circuit's fluid "
-                    "[m^3/s]: where given (ReliefValve.from_setting gives it), the opening's "
-                    "area gradient is sized from it at run time, Q_rated / (Cd sqrt(2 p_full / "
-                    "rho) x_max), so the data-sheet point holds whatever rho and Cd the circuit "
-                    "gives; w then only scales the flow force")
+                    "[m^3/s], instead of w (ReliefValve.from_setting gives it): the opening's "
+                    "area gradient is then Q_rated / (Cd sqrt(2 p_full / rho) x_max) at run "
+                    "time, so the data-sheet point holds whatever rho and Cd the circuit gives")
 
     @model_validator(mode="after")
     def _leak(self):
-        if self.A_leak >= 0.01 * self.w * self.x_max:
+        if (self.w is None) == (self.Q_rated is None):
+            raise ValueError("give the opening as its area gradient w or as the flow Q_rated "
+                             "it passes fully open (from_setting), one of the two")
+        if self.A_leak >= 0.01 * self.w_open * self.x_max:
             raise ValueError(f"A_leak ({self.A_leak!r}) must be below 1 % of w * x_max")
         return self
+
+    @property
+    def w_open(self) -> float:
+        """The opening's area gradient [m^2/m] (from Q_rated where that is given)."""
+        return self.w if self.w is not None else rated_gradient(self)
 
     @property
     def p_full(self) -> float:
@@ -113,9 +121,19 @@ class ReliefValveParams(_RestrictionParams):
         return self.p_crack + self.k * self.x_max / self.A_s
 
 
-def relief_opening(dp, p):
-    """Static opening ``x`` of a direct-acting relief valve at the pressure drop ``dp`` [m]."""
-    k_f = 2.0 * p.Cd * p.w * math.cos(p.theta)
+def rated_gradient(p):
+    """The area gradient [m^2/m] that passes ``p.Q_rated`` fully open at ``p_full`` (numbers or
+    the traced parameters alike)."""
+    p_full = p.p_crack + p.k * p.x_max / p.A_s
+    return p.Q_rated / (p.Cd * E.sqrt(2.0 * p_full / p.rho) * p.x_max) \
+        if isinstance(p.Q_rated, E.Expr) or isinstance(p.rho, E.Expr) else \
+        p.Q_rated / (p.Cd * math.sqrt(2.0 * p_full / p.rho) * p.x_max)
+
+
+def relief_opening(dp, p, w=None):
+    """Static opening ``x`` of a direct-acting relief valve at the pressure drop ``dp`` [m]
+    (``w``: the opening's area gradient, ``p.w`` by default)."""
+    k_f = 2.0 * p.Cd * (p.w if w is None else w) * math.cos(p.theta)
     x_star = p.A_s * (dp - p.p_crack) / (p.k + k_f * onset_penetration(dp, 1.0))
     eps = 1e-3 * p.x_max
     return onset_penetration(x_star, eps) - onset_penetration(x_star - p.x_max, eps)
@@ -168,21 +186,15 @@ class ReliefValve(Component):
                 from pvgraph.errors import ParameterError
                 raise ParameterError(f"ReliefValve.from_setting chooses {name} from the setting; "
                                      f"give the spool's parameters to ReliefValve(...) instead")
-        # the fluid and the discharge coefficient as the valve's model reads them (units, bounds)
-        fixed = cls(p_crack=1e7, A_s=2e-5, k=2e4, x_max=1e-3, w=5e-3, **params).params
-        cd, rho = fixed.Cd, fixed.rho
         x_max, a_s = 1e-3, 20e-6
-        a_open = Q / (cd * math.sqrt(2.0 * (p_crack + dp_o) / rho))
         return cls(p_crack=p_crack, A_s=a_s, k=dp_o * a_s / x_max, x_max=x_max,
-                   w=a_open / x_max, theta=math.pi / 2, Q_rated=Q, **params)
+                   theta=math.pi / 2, Q_rated=Q, **params)
 
     def equations(self, v, p):
         dp = v.observe("dp", v.P.p - v.T.p, "Pa", "pressure drop P - T")
-        x = v.observe("x", relief_opening(dp, p), "m", "spool opening")
-        w = p.w
-        if p.Q_rated is not None:   # sized from the data sheet in the circuit's fluid
-            p_full = p.p_crack + p.k * p.x_max / p.A_s
-            w = p.Q_rated / (p.Cd * E.sqrt(2.0 * p_full / p.rho) * p.x_max)
+        # the opening as given, or sized from the data sheet in the circuit's fluid
+        w = p.w if p.Q_rated is None else rated_gradient(p)
+        x = v.observe("x", relief_opening(dp, p, w), "m", "spool opening")
         A = p.A_leak + w * x
         q = v.observe("q", orifice_flow(p.Cd, A, dp, p.rho, p.dp_t), "m^3/s", "flow P -> T")
         v.observe("P_loss", q * dp, "W", "hydraulic power dissipated")
@@ -190,6 +202,8 @@ class ReliefValve(Component):
 
 
 class DynamicReliefValveParams(ReliefValveParams):
+    w: float = Field(..., gt=0.0, le=1.0,
+                     description="Area gradient (flow gain) of the opening [m^2/m]")
     m: float = Field(..., gt=0.0, le=10.0, description="Mass of the spool or poppet [kg]")
     b: float = Field(..., ge=0.0, le=1e6, description="Viscous damping of the spool [N s/m]")
     k_stop: float = Field(1e8, gt=0.0, le=1e12,

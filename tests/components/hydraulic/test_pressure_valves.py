@@ -300,3 +300,31 @@ def test_from_setting_checks_the_fluid_and_refuses_the_spool_it_chooses():
         ReliefValve.from_setting("200 bar", "60 L/min", "15 bar", k=5e4)
     assert ReliefValve.from_setting("200 bar", "60 L/min", "15 bar",
                                     rho="900 kg/m^3").params.rho == 900.0
+
+
+def test_a_valve_from_its_setting_has_no_dead_area_gradient():
+    """from_setting sizes the opening from Q_rated at run time, so the area gradient w it
+    used to store did nothing (a sweep of rv.w changed nothing, silently). The valve holds
+    Q_rated instead of w: its Q_rated moves the pressure, and a w given beside it is
+    refused."""
+    from pvgraph import ParameterError
+    from pvgraph.analysis import steady_state
+    from pvgraph.components.hydraulic import FlowSource, VolumeNode
+    rv = ReliefValve.from_setting("150 bar", "60 L/min", "15 bar")
+    assert rv.params.w is None and rv.params.Q_rated == pytest.approx(1e-3)
+    c = Circuit("rv")
+    c.add("pump", FlowSource(Q="60 L/min"))
+    c.add("node", VolumeNode(V="0.1 L"))
+    c.add("rv", rv)
+    c.add("tank", Tank())
+    c.connect("pump.port", "node.port", "rv.P")
+    c.connect("rv.T", "tank.port")
+    system = c.compile()
+    assert steady_state(system)["node.port.p"] == pytest.approx(165e5, abs=0.02e5)
+    # rated for twice the flow: 60 L/min is then half open, at 150 + 7.5 bar (dp ~ Q^2/x^2)
+    p = steady_state(system, params={"rv.Q_rated": 2e-3})["node.port.p"]
+    assert 150e5 < p < 160e5
+    with pytest.raises(ParameterError, match="area gradient w or as the flow Q_rated"):
+        steady_state(system, params={"rv.w": 0.01})
+    with pytest.raises(ParameterError, match="area gradient w or as the flow Q_rated"):
+        ReliefValve(p_crack="150 bar", A_s="20 mm^2", k=3e4, x_max="1 mm")
