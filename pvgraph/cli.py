@@ -503,6 +503,41 @@ def _parse_number(text: str, name: str, unit: str | None = None) -> float:
     return value
 
 
+def _is_bare(text: str) -> bool:
+    """Whether a value of a ``--param`` spec is a plain number (read as SI)."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _check_units_not_mixed(name: str, values: list[str], spell, declared=None) -> None:
+    """A spec whose values mix plain numbers (SI) with quantities (``1:2 mm^2:3``) is
+    refused: the plain one would be read as SI, not in the other's unit. ``spell(values)``
+    writes the spec back from its values (for the correct spellings in the message);
+    ``declared`` is the parameter's SI unit."""
+    bare = [v.strip() for v in values if _is_bare(v)]
+    given = [v.strip() for v in values if not _is_bare(v)]
+    if not bare or not given:
+        return
+    from .units import _NUMBER
+    match = _NUMBER.match(given[0])
+    unit = match.group(2) if match and match.group(2) else None
+    if unit:
+        typed = [f"{v.strip()} {unit}" if _is_bare(v) else v.strip() for v in values]
+        hint = f"write '{name}={spell(typed)}'"
+        try:
+            si = [f"{_parse_number(v, name, declared):.12g}" for v in typed] if declared else None
+        except PvgraphError:
+            si = None
+        hint += f" or, in SI, '{name}={spell(si)}'" if si else ", or SI numbers for all"
+    else:
+        hint = "give every value with its unit, or SI numbers for all"
+    raise PvgraphError(f"--param {name}: {bare[0]!r} has no unit but {given[0]!r} has one, "
+                       f"and a plain number is read as SI, not in that unit: {hint}")
+
+
 def _parse_param(spec: str, random_mode: bool, units: dict | None = None):
     """``NAME=SPEC`` -> (name, grid values or random-sample range); see ``--param`` help."""
     import numpy as np
@@ -516,6 +551,7 @@ def _parse_param(spec: str, random_mode: bool, units: dict | None = None):
     parts = (body[4:] if log else body).split(":")
     if len(parts) == 1 and not log:
         values = [_parse_number(v, name, unit) for v in body.split(",")]
+        _check_units_not_mixed(name, body.split(","), ",".join, unit)
         if random_mode and len(values) > 1:
             raise PvgraphError(f"--param {name}: with --random give a range LO:HI (or "
                                f"log:LO:HI) or one fixed value, not a list")
@@ -525,12 +561,22 @@ def _parse_param(spec: str, random_mode: bool, units: dict | None = None):
             raise PvgraphError(f"--param {name}: with --random give a range LO:HI or "
                                f"log:LO:HI, not {body!r}")
         lo, hi = (_parse_number(v, name, unit) for v in parts)
+        _check_units_not_mixed(name, parts, lambda v: ("log:" if log else "") + ":".join(v),
+                               unit)
+        if not lo < hi:
+            raise PvgraphError(f"--param {name}: a random range LO:HI needs LO < HI, got "
+                               f"{body!r} ({lo:g} to {hi:g} SI)")
+        if log and lo <= 0:
+            raise PvgraphError(f"--param {name}: a log range needs positive bounds, got "
+                               f"{body!r}")
         return name, (("log", lo, hi) if log else (lo, hi))
     if len(parts) != 3:
         raise PvgraphError(f"--param {name}: a grid range needs the number of points, "
                            f"{'log:' if log else ''}LO:HI:N (or use --random N to sample "
                            f"LO:HI); got {body!r}")
     lo, hi = (_parse_number(v, name, unit) for v in parts[:2])
+    _check_units_not_mixed(name, parts[:2], lambda v: ("log:" if log else "") + ":".join(v)
+                           + ":" + parts[2].strip(), unit)
     try:
         n = int(parts[2])
     except ValueError:
@@ -627,8 +673,53 @@ def _noted_case(run, **params) -> dict:
     return out
 
 
-def _check_target_case(circuit, case: dict) -> None:
-    circuit.check_parameters(case)
+_PLAIN_NUMBER_HINT = re.compile(r': a plain number is in ([^;]+); give the unit with the '
+                                r'number, e\.g\. (\w+)="(\S+) ([^"]+)"')
+
+
+def _typed_params(args) -> dict:
+    """``{name: spec}`` of the ``--param`` options as typed."""
+    return {n.strip(): body.strip() for n, eq, body in
+            (spec.partition("=") for spec in getattr(args, "param", None) or []) if eq}
+
+
+def _in_cli_spelling(message: str, case: dict, typed: dict) -> str:
+    """A parameter message's hint for a plain number in the spelling of ``--param``: the
+    spec with the unit on every value (``--param 'pump.Q=5 L/min:20 L/min:4'``), or no hint
+    where the spec gave units already (the case's number is their SI value)."""
+    def replace(m):
+        si, field, number, usual = m.groups()
+        for name, value in case.items():
+            if name.rpartition(".")[2] != field or name not in typed or \
+                    not isinstance(value, float) or f"{value:g}" != number:
+                continue
+            spec = typed[name]
+            log = spec.startswith("log:")
+            parts = (spec[4:] if log else spec).split(",")
+            if len(parts) == 1:
+                parts = parts[0].split(":")
+                count = parts.pop() if len(parts) == 3 else None
+                sep = ":"
+            else:
+                count, sep = None, ","
+            if not all(_is_bare(v) for v in parts):
+                return ""      # given with units: the bound (in its unit) says it all
+            written = sep.join(f"{v.strip()} {usual}" for v in parts)
+            written = ("log:" if log else "") + written + (f":{count}" if count else "")
+            return (f": a plain number is in {si}; give the unit with the numbers, e.g. "
+                    f"--param '{name}={written}'")
+        return m.group(0)
+    return _PLAIN_NUMBER_HINT.sub(replace, message)
+
+
+def _check_target_case(circuit, case: dict, typed: dict | None = None) -> None:
+    try:
+        circuit.check_parameters(case)
+    except PvgraphError as exc:
+        text = _in_cli_spelling(str(exc), case, typed or {})
+        if text == str(exc):
+            raise
+        raise PvgraphError(text) from None
 
 
 def cmd_sweep(args) -> int:
@@ -662,7 +753,8 @@ def cmd_sweep(args) -> int:
         rtol=args.rtol, steady=args.steady, warm=args.steady))
     units = {n: system.unit(r) for n, r in zip(outputs, resolved)}
     result, backend = run_sweep(args, run, cases, units,
-                                functools.partial(_check_target_case, circuit))
+                                functools.partial(_check_target_case, circuit,
+                                                  typed=_typed_params(args)))
     if result is None:
         return 130
     what = "steady states" if args.steady else f"t_end {t_end:g} s"
@@ -926,7 +1018,8 @@ def _add_sweep_backend(w) -> None:
                    help="parameter to vary (component.field, e.g. orifice.A). SPEC: LO:HI:N "
                         "(N points), log:LO:HI:N (log-spaced), V1,V2,... or a fixed V; with "
                         "--random: LO:HI, log:LO:HI or a fixed V. SI numbers, or quantities "
-                        "with units (\"2 mm^2,3 mm^2\"). Repeatable: the grid is the product")
+                        "with the unit on every value (\"2 mm^2:4 mm^2:3\"). Repeatable: the "
+                        "grid is the product")
     w.add_argument("--random", type=int, metavar="N",
                    help="draw N random cases from the LO:HI ranges instead of a grid")
     w.add_argument("--seed", type=int, default=None, help="random seed (with --random)")

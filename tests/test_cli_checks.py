@@ -1,0 +1,87 @@
+"""User mistakes on the ``pvgraph`` command line: each is refused with exit 2 and a message
+naming the option, before anything runs and without writing anything."""
+
+import json
+
+import pytest
+
+from pvgraph.cli import main
+
+RIG = '''
+from pvgraph import Circuit
+from pvgraph.components import FlowSource, Orifice, Tank, VolumeNode
+
+
+def build(Q="10 L/min"):
+    c = Circuit("demo")
+    pump = c.add("pump", FlowSource(Q=Q))
+    node = c.add("node", VolumeNode(V="0.5 L"))
+    orifice = c.add("orifice", Orifice(A="2 mm^2"))
+    tank = c.add("tank", Tank())
+    c.connect(pump.port, node.port, orifice.a)
+    c.connect(orifice.b, tank.port)
+    return c
+'''
+
+
+@pytest.fixture
+def rig(tmp_path):
+    path = tmp_path / "my_rig.py"
+    path.write_text(RIG)
+    return f"{path}:build"
+
+
+def _sweep(rig, out, *param_args):
+    return main(["sweep", rig, *param_args, "--var", "node.port.p", "--t-end", "0.1",
+                 "--backend", "serial", "--out", str(out)])
+
+
+# --------------------------------------------------------------------------------------------
+# sweep --param: a plain number beside a quantity is SI, not in the quantity's unit
+
+@pytest.mark.parametrize("spec, bare, fixed, si", [
+    ("orifice.A=1:2 mm^2:3", "'1'", "'orifice.A=1 mm^2:2 mm^2:3'", "'orifice.A=1e-06:2e-06:3'"),
+    ("orifice.A=log:1:4 mm^2:3", "'1'", "'orifice.A=log:1 mm^2:4 mm^2:3'",
+     "'orifice.A=log:1e-06:4e-06:3'"),
+    ("orifice.A=0.5,1 mm^2", "'0.5'", "'orifice.A=0.5 mm^2,1 mm^2'", "'orifice.A=5e-07,1e-06'"),
+    ("pump.Q=5:20 L/min:4", "'5'", "'pump.Q=5 L/min:20 L/min:4'", None),
+])
+def test_sweep_refuses_a_spec_mixing_plain_numbers_and_units(spec, bare, fixed, si, rig, tmp_path,
+                                                             capsys):
+    out = tmp_path / "s"
+    assert _sweep(rig, out, "--param", spec) == 2
+    err = capsys.readouterr().err
+    name = spec.partition("=")[0]
+    assert f"pvgraph sweep: error: --param {name}: {bare} has no unit" in err
+    assert fixed in err
+    if si:
+        assert si in err
+    assert not out.exists()
+
+
+def test_random_sweep_mixing_units_or_an_empty_range_names_the_option(rig, tmp_path, capsys):
+    out = tmp_path / "s"
+    assert _sweep(rig, out, "--param", "orifice.A=1:2 mm^2", "--random", "3") == 2
+    err = capsys.readouterr().err
+    assert "--param orifice.A: '1' has no unit but '2 mm^2' has one" in err
+    assert "'orifice.A=1 mm^2:2 mm^2'" in err
+    assert _sweep(rig, out, "--param", "orifice.A=2 mm^2:1 mm^2", "--random", "3") == 2
+    err = capsys.readouterr().err
+    assert "--param orifice.A: a random range LO:HI needs LO < HI" in err
+    assert "random_sample" not in err
+    assert not out.exists()
+
+
+def test_an_out_of_bound_value_is_hinted_in_the_spelling_of_param(rig, tmp_path, capsys):
+    out = tmp_path / "s"
+    # plain numbers: the unit they were likely meant in, written as a --param spec
+    assert _sweep(rig, out, "--param", "pump.Q=5:20:4") == 2
+    err = capsys.readouterr().err
+    assert "give the unit with the numbers, e.g. --param 'pump.Q=5 L/min:20 L/min:4'" in err
+    assert 'Q="10 L/min"' not in err and 'Q="15 L/min"' not in err
+    # quantities: their SI value is not offered in another unit
+    assert _sweep(rig, out, "--param", "pump.Q=2 m^3/s,3 m^3/s") == 2
+    err = capsys.readouterr().err
+    assert "less than or equal to 1 [m^3/s]" in err
+    assert "L/min" not in err
+    assert not out.exists()
