@@ -627,10 +627,22 @@ def _sweep_cases(args, valid, prefix: dict | None = None) -> list[dict]:
     return grid({**(prefix or {}), **specs})
 
 
+#: the sweep's Python arguments in messages, as the command line spells them
+_SWEEP_SPELLING = {"resume=True": "--resume", "overwrite=True": "--overwrite", "out='": "--out '"}
+
+
+def _in_option_spelling(message: str) -> str:
+    """A sweep message with its Python arguments (``resume=True``) as command-line options
+    (``--resume``)."""
+    for python, option in _SWEEP_SPELLING.items():
+        message = re.sub(rf"(?<![\w.]){re.escape(python)}", option, message)
+    return message
+
+
 def run_sweep(args, run, cases, units, check):
     """Run a sweep with the command's backend options; ``(result, backend)``, or
     ``(None, backend)`` after Ctrl-C (what finished is kept in ``--out``)."""
-    from .analysis.sweep import SweepInterrupted, sweep
+    from .analysis.sweep import SweepError, SweepInterrupted, sweep
     if args.workers is not None and args.workers < 1:
         raise PvgraphError(f"--workers must be >= 1, got {args.workers}")
     if args.timeout is not None and not args.timeout > 0:
@@ -643,6 +655,8 @@ def run_sweep(args, run, cases, units, check):
         result = sweep(run, cases, backend=backend, workers=args.workers, client=args.scheduler,
                        progress=True, units=units, out=args.out, resume=args.resume,
                        overwrite=args.overwrite, timeout=args.timeout, check=check)
+    except SweepError as exc:
+        raise PvgraphError(_in_option_spelling(str(exc))) from None
     except SweepInterrupted as exc:
         done = exc.result
         print(f"\ninterrupted: {len(done.records)} of {done.n_cases} cases finished and kept "
@@ -1229,4 +1243,7 @@ def _run(args, argv) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # run as pvgraph.cli, not __main__: the functions a sweep sends to its workers and names
+    # in its record are then the same as under the pvgraph command
+    from pvgraph.cli import main as _main
+    sys.exit(_main())

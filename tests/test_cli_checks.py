@@ -85,3 +85,33 @@ def test_an_out_of_bound_value_is_hinted_in_the_spelling_of_param(rig, tmp_path,
     assert "less than or equal to 1 [m^3/s]" in err
     assert "L/min" not in err
     assert not out.exists()
+
+
+# --------------------------------------------------------------------------------------------
+# sweep --resume: only the run that made the record
+
+@pytest.mark.parametrize("changed, recorded, now", [
+    (["--t-end", "0.1"], "t_end 0.5", "t_end 0.1"),
+    (["--t-end", "0.5", "--rtol", "1e-8"], "rtol 1e-06", "rtol 1e-08"),
+    (["--t-end", "0.5", "--var", "orifice.q"], "outputs ['node.port.p']", "outputs ['orifice.q']"),
+])
+def test_resume_of_another_run_exits_2_and_keeps_the_record(changed, recorded, now, rig,
+                                                            tmp_path, capsys):
+    out = tmp_path / "s"
+    first = ["sweep", rig, "--param", "orifice.A=1 mm^2,2 mm^2", "--backend", "serial",
+             "--out", str(out)]
+    assert main(first + ["--var", "node.port.p", "--t-end", "0.5"]) == 0
+    log = out / "cases.jsonl"
+    before = log.read_text()
+    table = (out / "sweep.json").read_text()
+    capsys.readouterr()
+    var = [] if "--var" in changed else ["--var", "node.port.p"]
+    assert main(first + var + changed + ["--resume"]) == 2
+    err = capsys.readouterr().err
+    assert f"pvgraph sweep: error: resume: {log} was recorded by another run (recorded: " \
+           f"{recorded}; now: {now})" in err
+    assert "--overwrite" in err and "overwrite=True" not in err
+    assert log.read_text() == before and (out / "sweep.json").read_text() == table
+    # the same command resumes (nothing left to run)
+    assert main(first + ["--var", "node.port.p", "--t-end", "0.5", "--resume"]) == 0
+    assert json.loads(log.read_text().splitlines()[0]) == json.loads(before.splitlines()[0])

@@ -757,7 +757,8 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
     units : dict, optional
         Unit of each output (``{"q": "m^3/s"}``), kept as metadata in the result and its files.
     resume : bool
-        Keep the successful cases recorded in ``out/cases.jsonl`` (they must be the same cases)
+        Keep the successful cases recorded in ``out/cases.jsonl`` (they must be the same cases,
+        recorded by the same run)
         and run only the others.
     overwrite : bool
         Replace the record of an earlier sweep in ``out`` (without ``resume`` or
@@ -781,7 +782,8 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
     SweepError
         ``run`` is not callable or cannot be pickled, ``cases`` is empty or its cases set
         different parameters, ``check`` refused cases, the backend, the worker count or the
-        timeout is invalid, or ``resume`` finds a record of other cases.
+        timeout is invalid, or ``resume`` finds a record of other cases or of another run
+        (its function, outputs, t_end or tolerance differ: the record is left as it is).
     SweepInterrupted
         Ctrl-C; the finished cases are in its ``result`` and in ``out``.
     """
@@ -825,8 +827,8 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
             os.path.exists(os.path.join(os.fspath(out), LOG_NAME)):
         raise SweepError(f"{os.path.join(os.fspath(out), LOG_NAME)} holds the record of an "
                          f"earlier sweep ({_recorded(os.path.join(os.fspath(out), LOG_NAME))}): "
-                         f"resume it (resume=True, --resume), replace it (overwrite=True, "
-                         f"--overwrite) or give another folder")
+                         f"resume it (resume=True), replace it (overwrite=True) or give "
+                         f"another folder")
     if units is not None:
         if not isinstance(units, Mapping):
             raise SweepError(f"units must be a mapping {{output name: unit}}, e.g. "
@@ -852,13 +854,14 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
         records = {i: r for i, r in _read_log(log_path, cases).items() if r.ok}
         before = _recorded_identity(log_path)
         if records and before is not None and before != identity:
-            from ..errors import PlausibilityWarning
-            _warnings.warn(PlausibilityWarning(
-                f"resume: {log_path} was recorded by another run ({before}); this one is "
-                f"{identity}: its {len(records)} finished case"
-                f"{'s' if len(records) != 1 else ''} stay as recorded and the rest come from "
-                f"this run. Give overwrite=True (--overwrite) to run every case again."),
-                stacklevel=2)
+            # the kept cases would be shown as this run's (its t_end, outputs ...): refused
+            # like a record of other cases, the record left as it is
+            raise SweepError(
+                f"resume: {log_path} was recorded by another run "
+                f"({_identity_difference(before, identity)}); its {len(records)} finished "
+                f"case{'s' if len(records) != 1 else ''} cannot be counted as this run's. "
+                f"Use the same arguments as the recorded run, overwrite=True to run every "
+                f"case again, or another output folder")
     todo = [i for i in range(len(cases)) if i not in records]
     if check is not None:
         _check_values(check, cases, todo)
@@ -1005,6 +1008,22 @@ def _identity_of(value) -> str:
     if callable(getattr(value, "sweep_identity", None)) or callable(value):
         return run_identity(value)
     return re.sub(r" at 0x[0-9a-fA-F]+", "", repr(value))
+
+
+def _identity_difference(before: str, now: str) -> str:
+    """``"recorded t_end 10.0, now t_end 0.1"``: the part of two run identities that
+    differs, widened to whole ", "-separated items."""
+    start = len(os.path.commonprefix([before, now]))
+    end = len(os.path.commonprefix([before[::-1], now[::-1]]))
+    end = min(end, len(before) - start, len(now) - start)
+    cut = max(before.rfind(", ", 0, start), before.rfind("(", 0, start))
+    start = cut + (2 if before.startswith(", ", cut) else 1) if cut >= 0 else 0
+
+    def stop(text):
+        k = len(text) - end
+        found = [i for i in (text.find(", ", k), text.find(")", k)) if i >= 0]
+        return min(found) if found else len(text)
+    return f"recorded: {before[start:stop(before)]}; now: {now[start:stop(now)]}"
 
 
 def _recorded_identity(path):
