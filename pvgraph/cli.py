@@ -833,6 +833,15 @@ def _check_outputs(system, names) -> None:
                            f"outputs)")
 
 
+def _refuse_repeats(names, option: str) -> None:
+    """A name given twice to a repeatable option is refused, naming it."""
+    seen = set()
+    for name in names or []:
+        if name in seen:
+            raise PvgraphError(f"{option} {name} is given twice; give each once")
+        seen.add(name)
+
+
 def _frequency_response(lm, freq_hz, output: int, input: int = 0):
     """G(j 2 pi f) of a linear model at the frequencies ``freq_hz`` [Hz]."""
     import numpy as np
@@ -851,6 +860,8 @@ def cmd_linearize(args) -> int:
             raise PvgraphError("give a circuit: pvgraph linearize my_rig.py:build --input "
                                "pump.Q --output node.port.p")
         return handler[0](args)
+    _refuse_repeats(args.input, "--input")
+    _refuse_repeats(args.output, "--output")
     target = _target(args)
     circuit = target.circuit()
     if not args.input:

@@ -115,3 +115,20 @@ def test_resume_of_another_run_exits_2_and_keeps_the_record(changed, recorded, n
     # the same command resumes (nothing left to run)
     assert main(first + ["--var", "node.port.p", "--t-end", "0.5", "--resume"]) == 0
     assert json.loads(log.read_text().splitlines()[0]) == json.loads(before.splitlines()[0])
+
+
+# --------------------------------------------------------------------------------------------
+# linearize: a repeated --input or --output
+
+@pytest.mark.parametrize("args, message", [
+    (["--input", "pump.Q", "--input", "pump.Q", "--output", "node.port.p"],
+     "--input pump.Q is given twice"),
+    (["--input", "pump.Q", "--output", "node.port.p", "--output", "node.port.p"],
+     "--output node.port.p is given twice"),
+])
+def test_linearize_refuses_a_name_given_twice(args, message, rig, tmp_path, capsys):
+    path = tmp_path / "lin.json"
+    assert main(["linearize", rig, *args, "--json", str(path)]) == 2
+    captured = capsys.readouterr()
+    assert f"pvgraph linearize: error: {message}" in captured.err
+    assert "DC gain" not in captured.out and not path.exists()
