@@ -413,12 +413,17 @@ def cmd_vars(args) -> int:
 
 def cmd_graph(args) -> int:
     from .plotting import draw_circuit
+    suffix = os.path.splitext(args.out)[1].lstrip(".").lower()
+    if args.format is None and suffix not in ("png", "svg", "dot"):
+        raise PvgraphError(f"--out {args.out!r}: the format comes from the extension; name "
+                           f"the file .png, .svg or .dot, or give --format")
+    if args.format is not None and suffix and suffix != args.format:
+        raise PvgraphError(f"--format {args.format} but --out {args.out!r} is named "
+                           f".{suffix}; name it "
+                           f"{os.path.splitext(args.out)[0] + '.' + args.format!r} or leave "
+                           f"--format out")
     target = _target(args)
-    fmt = args.format or os.path.splitext(args.out)[1].lstrip(".").lower() or "png"
-    if fmt not in ("png", "svg", "dot"):
-        raise PvgraphError(f"--format {fmt!r}: choose png, svg or dot (or name the output "
-                           f"file .png, .svg or .dot)")
-    out = draw_circuit(target.circuit(), args.out, fmt=fmt)
+    out = draw_circuit(target.circuit(), args.out, fmt=args.format or suffix)
     print(f"wrote {out}")
     return 0
 
@@ -1116,7 +1121,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_target(g)
     g.add_argument("--out", default="circuit.png", type=_output_path, help="output file (default: %(default)s)")
     g.add_argument("--format", choices=["png", "svg", "dot"],
-                   help="default: from the extension of --out")
+                   help="default: from the extension of --out (which must then agree)")
     g.set_defaults(func=cmd_graph)
 
     e = parsers["export"] = sub.add_parser(

@@ -1,7 +1,7 @@
 """Plots with matplotlib: time series by name, Bode and step responses, circuit drawings.
 
-All functions write a PNG (or SVG, by the file's extension) and return its path; they use the
-non-interactive Agg backend so they work on machines without a screen.
+All functions write a PNG (or SVG, by the file's extension) to the path given and return it;
+they use the non-interactive Agg backend so they work on machines without a screen.
 """
 
 from __future__ import annotations
@@ -21,12 +21,20 @@ __all__ = ["plot_solution", "draw_circuit", "plot_bode", "plot_step_response",
 
 
 
-def _save(fig, path):
+#: file extensions naming a figure or drawing format, besides the one asked for
+_FORMAT_SUFFIXES = ("png", "svg", "pdf", "dot", "gv", "jpg", "jpeg", "eps", "ps", "tif", "tiff")
+
+
+def _save(fig, path, fmt=None):
+    """Write ``fig`` to ``path`` itself, in ``fmt`` (default: the extension, else PNG)."""
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    fmt = fmt or os.path.splitext(os.fspath(path))[1].lstrip(".").lower() or "png"
+    try:
+        fig.savefig(path, dpi=110, format=fmt)
+    finally:
+        plt.close(fig)
     return path
 
 
@@ -160,7 +168,13 @@ def draw_circuit(circuit, path, *, fmt=None):
         from .errors import PvgraphError
         raise PvgraphError(f"draw_circuit: {path!r} is a folder; give the file to write "
                            f"(e.g. {os.path.join(path, circuit.name + '.png')!r})")
-    fmt = fmt or (os.path.splitext(path)[1].lstrip(".").lower() or "png")
+    suffix = os.path.splitext(path)[1].lstrip(".").lower()
+    if fmt is not None and suffix in _FORMAT_SUFFIXES and suffix != fmt and \
+            {suffix, fmt} != {"dot", "gv"}:
+        raise ValueError(f"draw_circuit: fmt={fmt!r} but the file {path!r} is named .{suffix}; "
+                         f"name it .{fmt} or leave fmt out (the format then comes from the "
+                         f"extension)")
+    fmt = fmt or ({"gv": "dot"}.get(suffix, suffix) or "png")
     nodes, edges, groups = _schematic(circuit)
     if fmt == "dot":
         os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
@@ -216,7 +230,7 @@ def draw_circuit(circuit, path, *, fmt=None):
     ax.set_xlim(-0.8, width)
     ax.set_ylim(-height - 0.2, 0.6)
     ax.axis("off")
-    return _save(fig, path)
+    return _save(fig, path, fmt)
 
 
 def _write_dot(circuit, nodes, edges, groups, path):

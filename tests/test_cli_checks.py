@@ -132,3 +132,46 @@ def test_linearize_refuses_a_name_given_twice(args, message, rig, tmp_path, caps
     captured = capsys.readouterr()
     assert f"pvgraph linearize: error: {message}" in captured.err
     assert "DC gain" not in captured.out and not path.exists()
+
+
+# --------------------------------------------------------------------------------------------
+# graph: the format asked for is the format written, under the name printed
+
+def test_graph_format_svg_writes_svg_under_the_name_printed(rig, tmp_path, capsys):
+    out = tmp_path / "gg"
+    assert main(["graph", rig, "--format", "svg", "--out", str(out)]) == 0
+    assert capsys.readouterr().out.strip() == f"wrote {out}"
+    assert out.read_text().lstrip().startswith("<?xml") and "<svg" in out.read_text()
+    assert not (tmp_path / "gg.png").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--format", "svg", "--out", "{dir}/g2.png"],
+     "--format svg but --out '{dir}/g2.png' is named .png; name it '{dir}/g2.svg'"),
+    (["--format", "png", "--out", "{dir}/g2.dot"], "--format png but --out '{dir}/g2.dot'"),
+    (["--out", "{dir}/g5"], "--out '{dir}/g5': the format comes from the extension"),
+])
+def test_graph_refuses_a_name_that_disagrees_with_the_format(args, message, rig, tmp_path,
+                                                              capsys):
+    args = [a.format(dir=tmp_path) for a in args]
+    assert main(["graph", rig, *args]) == 2
+    assert f"pvgraph graph: error: {message.format(dir=tmp_path)}" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == [tmp_path / "my_rig.py"]
+
+
+def test_draw_circuit_writes_the_format_asked_for(tmp_path):
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("rig_for_drawing", tmp_path / "r.py")
+    (tmp_path / "r.py").write_text(RIG)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    from pvgraph.plotting import draw_circuit
+    path = tmp_path / "noext"
+    assert draw_circuit(module.build(), path, fmt="svg") == str(path)
+    assert "<svg" in path.read_text()
+    plain = tmp_path / "plain"
+    assert draw_circuit(module.build(), plain) == str(plain)      # PNG under the very name
+    assert plain.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(ValueError, match=r"fmt='svg' but the file .* is named \.png"):
+        draw_circuit(module.build(), tmp_path / "g4.png", fmt="svg")
+    assert not (tmp_path / "g4.png").exists()
