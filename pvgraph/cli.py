@@ -429,9 +429,24 @@ def cmd_graph(args) -> int:
 
 
 def cmd_export(args) -> int:
+    fmu = args.out.endswith(".fmu")
+    if fmu:
+        for names, option in ((args.var, "--var"), (args.input, "--input"),
+                              (args.parameter, "--parameter")):
+            _refuse_repeats(names, option)
+        both = sorted(set(args.input or []) & set(args.parameter or []))
+        if both:
+            raise PvgraphError(f"{both[0]} is given as --input and as --parameter; give it "
+                               f"as one of them")
+    else:
+        given = [o for o, v in (("--var", args.var), ("--input", args.input),
+                                ("--parameter", args.parameter)) if v]
+        if given:
+            raise PvgraphError(f"{', '.join(given)} appl{'ies' if len(given) == 1 else 'y'} "
+                               f"to an FMU (--out NAME.fmu), not to a model file")
     target = _target(args)
     circuit = target.circuit()
-    if args.out.endswith(".fmu"):
+    if fmu:
         from .fmi import export_fmu
         path = export_fmu(circuit, args.out, outputs=args.var or list(target.variables),
                           inputs=args.input or [], parameters=args.parameter or [])

@@ -175,3 +175,41 @@ def test_draw_circuit_writes_the_format_asked_for(tmp_path):
     with pytest.raises(ValueError, match=r"fmt='svg' but the file .* is named \.png"):
         draw_circuit(module.build(), tmp_path / "g4.png", fmt="svg")
     assert not (tmp_path / "g4.png").exists()
+
+
+# --------------------------------------------------------------------------------------------
+# export: an FMU names each variable once
+
+@pytest.mark.parametrize("args, message", [
+    (["--var", "node.port.p", "--var", "node.port.p"], "--var node.port.p is given twice"),
+    (["--var", "node.port.p", "--input", "pump.Q", "--input", "pump.Q"],
+     "--input pump.Q is given twice"),
+    (["--var", "node.port.p", "--input", "pump.Q", "--parameter", "pump.Q"],
+     "pump.Q is given as --input and as --parameter"),
+])
+def test_export_fmu_refuses_a_name_given_twice(args, message, rig, tmp_path, capsys):
+    path = tmp_path / "d.fmu"
+    assert main(["export", rig, "--out", str(path), *args]) == 2
+    assert f"pvgraph export: error: {message}" in capsys.readouterr().err
+    assert not path.exists()
+
+
+def test_export_fmu_in_python_refuses_an_output_given_twice(tmp_path):
+    pytest.importorskip("pythonfmu")
+    from pvgraph.fmi import FmiError, export_fmu
+    (tmp_path / "r.py").write_text(RIG)
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("rig_for_fmu", tmp_path / "r.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    path = tmp_path / "d.fmu"
+    with pytest.raises(FmiError, match="'node.port.p' is given twice among the outputs"):
+        export_fmu(module.build(), path, outputs=["node.port.p", "node.port.p"])
+    assert not path.exists()
+
+
+def test_export_to_a_model_file_refuses_the_fmu_options(rig, tmp_path, capsys):
+    path = tmp_path / "m.toml"
+    assert main(["export", rig, "--out", str(path), "--var", "node.port.p"]) == 2
+    assert "--var applies to an FMU (--out NAME.fmu)" in capsys.readouterr().err
+    assert not path.exists()
