@@ -23,9 +23,8 @@ import os
 import sys
 import time
 
-from pvgraph.cli import (_check_outputs, _display, _frequency_response, _noted_case,
-                         _output_path, _progress, _sweep_cases, _write_json_atomic, output_dir,
-                         run_sweep)
+from pvgraph.cli import (_check_outputs, _display, _frequency_response, _noted_case, _progress,
+                         _sweep_cases, _write_json_atomic, json_path, output_dir, run_sweep)
 from pvgraph.errors import InitializationError, ParameterError, PvgraphError, SolverError
 from pvgraph.units import to_bar, to_lpm, to_mm
 
@@ -51,6 +50,7 @@ def cmd_validate(args) -> int:
     if unknown:
         raise PvgraphError(f"unknown scenario(s) {unknown}; valid: {', '.join(scenario_names())}")
     _check_cross_validation_options(args)
+    _check_json_beside_out(args)
     params = _preset(args.preset)
     label = f"preset '{args.preset}'"
     os.makedirs(args.out, exist_ok=True)
@@ -97,6 +97,30 @@ def cmd_validate(args) -> int:
               file=sys.stderr)
         return 1
     return 0
+
+
+#: the files pvgraph validate writes into its --out folder (besides the default --json)
+OUT_FILES = ("validation_targets.json", "flow_vs_voltage.png", "step_dp_L3.png",
+             "calibration.json", "cross_validation.json")
+
+
+def _check_json_beside_out(args) -> None:
+    """--json is a file that is neither the --out folder, nor a folder above it, nor one of
+    the files written into it: checked before any run."""
+    if not args.json:
+        return
+    json_path = os.path.realpath(args.json)
+    out = os.path.realpath(args.out)
+    if json_path == out or out.startswith(json_path.rstrip(os.sep) + os.sep):
+        where = "is the --out folder" if json_path == out else \
+            f"is a folder above --out {args.out!r}"
+        raise PvgraphError(f"--json {args.json!r} {where}; give a file name, e.g. "
+                           f"{os.path.join(args.out, 'validation.json')!r}")
+    clash = [name for name in OUT_FILES if json_path == os.path.join(out, name)]
+    if clash:
+        raise PvgraphError(f"--json {args.json!r} is the file {clash[0]} the command writes "
+                           f"into --out; give another name, e.g. "
+                           f"{os.path.join(args.out, 'validation.json')!r}")
 
 
 def _check_cross_validation_options(args) -> None:
@@ -535,7 +559,7 @@ def _scenario_rig(name: str, preset: str = "tuned", law: str = "laminar",
 def _configure_validate(v) -> None:
     v.add_argument("--out", default="pvgraph-report", type=output_dir,
                    help="output folder (default: %(default)s)")
-    v.add_argument("--json", type=_output_path,
+    v.add_argument("--json", type=json_path,
                    help="write the comparison records here (default: OUT/validation.json; "
                         "the targets go to OUT/validation_targets.json)")
     v.add_argument("--preset", default="tuned", help="parameter preset: tuned (report table 4.14) "

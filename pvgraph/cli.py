@@ -1006,6 +1006,16 @@ def _csv_path(text: str) -> str:
     return path
 
 
+def json_path(text: str) -> str:
+    """argparse type of --json: a writable file (an existing folder is refused with a .json
+    name in it as the hint), checked before anything runs."""
+    if text and os.path.isdir(os.path.abspath(text)):
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is a directory; give a file name, e.g. "
+            f"{os.path.join(text, 'result.json')!r}")
+    return _output_path(text)
+
+
 def _figure_path(text: str) -> str:
     """argparse type of --plot and --bode: a file name with a figure extension, checked
     before anything runs."""
@@ -1184,7 +1194,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="output variable (repeatable)")
     lz.add_argument("--poles", type=int, default=6, help="dominant poles to print "
                                                          "(default: %(default)s)")
-    lz.add_argument("--json", type=_output_path, help="write operating point, poles and DC gains to this file")
+    lz.add_argument("--json", type=json_path, help="write operating point, poles and DC gains to this file")
     lz.add_argument("--bode", metavar="PNG", type=_figure_path, help="draw the Bode plot of every output to this "
                                                   "PNG file")
     lz.add_argument("--si", action="store_true", help="print SI units")

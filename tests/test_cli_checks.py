@@ -213,3 +213,33 @@ def test_export_to_a_model_file_refuses_the_fmu_options(rig, tmp_path, capsys):
     assert main(["export", rig, "--out", str(path), "--var", "node.port.p"]) == 2
     assert "--var applies to an FMU (--out NAME.fmu)" in capsys.readouterr().err
     assert not path.exists()
+
+
+# --------------------------------------------------------------------------------------------
+# validate: --json and --out must not clash
+
+@pytest.mark.parametrize("out, json_name, message", [
+    ("vv", "vv", "--json '{dir}/vv' is the --out folder; give a file name, e.g. "
+                 "'{dir}/vv/validation.json'"),
+    ("vv3/sub", "vv3", "--json '{dir}/vv3' is a folder above --out '{dir}/vv3/sub'"),
+    ("vv", "vv/validation_targets.json", "--json '{dir}/vv/validation_targets.json' is the "
+                                         "file validation_targets.json the command writes "
+                                         "into --out"),
+])
+def test_validate_json_clashing_with_out_exits_2_before_any_run(out, json_name, message,
+                                                                tmp_path, capsys):
+    code = main(["validate", "--scenario", "test-1", "--no-plots", "--out",
+                 str(tmp_path / out), "--json", str(tmp_path / json_name)])
+    assert code == 2
+    captured = capsys.readouterr()
+    assert f"pvgraph validate: error: {message.format(dir=tmp_path)}" in captured.err
+    assert "PVG 32 on the lab rig" not in captured.out
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_json_naming_an_existing_folder_is_hinted_a_json_name(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["validate", "--json", str(tmp_path)])
+    assert exc.value.code == 2
+    assert f"argument --json: '{tmp_path}' is a directory; give a file name, e.g. " \
+           f"'{tmp_path / 'result.json'}'" in capsys.readouterr().err
