@@ -243,3 +243,47 @@ def test_json_naming_an_existing_folder_is_hinted_a_json_name(tmp_path, capsys):
     assert exc.value.code == 2
     assert f"argument --json: '{tmp_path}' is a directory; give a file name, e.g. " \
            f"'{tmp_path / 'result.json'}'" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------------------------
+# sweep: a backend that cannot start leaves no record
+
+def test_sweep_whose_backend_is_missing_leaves_no_record(rig, tmp_path, monkeypatch, capsys):
+    import sys
+    out = tmp_path / "m_study"
+    args = ["sweep", rig, "--param", "orifice.A=1 mm^2,2 mm^2", "--var", "node.port.p",
+            "--t-end", "0.1", "--out", str(out)]
+    monkeypatch.setitem(sys.modules, "distributed", None)     # dask not installed
+    assert main(args + ["--backend", "dask"]) == 2
+    assert 'backend "dask" needs dask.distributed' in capsys.readouterr().err
+    assert not (out / "cases.jsonl").exists()
+    monkeypatch.delitem(sys.modules, "distributed")
+    assert main(args + ["--backend", "serial"]) == 0       # the corrected command just runs
+    assert len((out / "cases.jsonl").read_text().splitlines()) == 3
+
+
+def test_sweep_whose_scheduler_is_out_of_reach_leaves_no_record(rig, tmp_path, capsys):
+    dask = pytest.importorskip("dask")
+    pytest.importorskip("distributed")
+    out = tmp_path / "sch"
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        code = main(["sweep", rig, "--param", "orifice.A=1 mm^2,2 mm^2", "--var",
+                     "node.port.p", "--t-end", "0.1", "--scheduler", "tcp://127.0.0.1:1",
+                     "--out", str(out)])
+    assert code == 2
+    assert "cannot connect to the Dask scheduler at 'tcp://127.0.0.1:1'" in \
+        capsys.readouterr().err
+    assert not (out / "cases.jsonl").exists()
+
+
+def test_sweep_refusing_an_earlier_record_gives_the_option_spelling(rig, tmp_path, capsys):
+    out = tmp_path / "s"
+    args = ["sweep", rig, "--param", "orifice.A=1 mm^2", "--var", "node.port.p", "--t-end",
+            "0.1", "--backend", "serial", "--out", str(out)]
+    assert main(args) == 0
+    capsys.readouterr()
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "holds the record of an earlier sweep (1 case, 1 finished): resume it (--resume), " \
+           "replace it (--overwrite) or give another folder" in err
+    assert "resume=True" not in err and "overwrite=True" not in err

@@ -563,7 +563,10 @@ def _run_process(run, todo, cases, workers, report, timeout) -> None:
         report(_run_isolated(run, i, cases[i], timeout))
 
 
-def _run_dask(run, todo, cases, workers, client, report, timeout=None) -> None:
+def _start_dask(workers, client):
+    """``(distributed, client, owned)``: the Dask client a sweep runs on, started (a local
+    cluster) or connected (a scheduler address) here, before the sweep's record is opened;
+    ``owned`` are what the sweep closes at its end."""
     try:
         import distributed
     except ImportError:
@@ -587,6 +590,11 @@ def _run_dask(run, todo, cases, workers, client, report, timeout=None) -> None:
     elif not isinstance(client, distributed.Client):
         raise SweepError(f"client must be a distributed.Client or a scheduler address string, "
                          f"got {type(client).__name__}")
+    return distributed, client, owned
+
+
+def _run_dask(run, todo, cases, started, report, timeout=None) -> None:
+    distributed, client, owned = started
     futures = []
     try:
         if timeout is not None:
@@ -878,8 +886,16 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
                              f"({exc.strerror or exc})") from None
         if not os.access(os.fspath(out), os.W_OK | os.X_OK):
             raise SweepError(f"out={os.fspath(out)!r}: the folder is not writable")
-    log = _open_log(log_path, cases, param_names, units, records, identity) \
-        if log_path else None
+    # the backend is started before the record is opened: a backend that cannot start
+    # (dask missing, a scheduler out of reach) leaves no record that blocks the retry
+    started = _start_dask(workers, client) if backend == "dask" and todo else None
+    try:
+        log = _open_log(log_path, cases, param_names, units, records, identity) \
+            if log_path else None
+    except BaseException:
+        for obj in (started or (None, None, []))[2]:
+            obj.close()
+        raise
     done = len(records)
 
     def report(res: CaseResult) -> None:
@@ -913,7 +929,7 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
         elif backend == "process":
             _run_process(run, todo, cases, workers, report, timeout)
         else:
-            _run_dask(run, todo, cases, workers, client, report, timeout)
+            _run_dask(run, todo, cases, started, report, timeout)
     except KeyboardInterrupt:
         if log is not None:
             log.close()
