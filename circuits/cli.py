@@ -142,6 +142,18 @@ def _check_cross_validation_options(args) -> None:
                                f"{', '.join(repr(k) for k in keys)}")
 
 
+def _positive_time(text: str) -> float:
+    """argparse type of --after and --t-switch: a finite time > 0 s."""
+    import argparse
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite time > 0 s, got {text}")
+    return value
+
+
 def _positive_int(text: str) -> int:
     """argparse type of --workers: a whole number >= 1."""
     import argparse
@@ -364,8 +376,9 @@ def sweep_scenarios(args) -> int:
     if unknown:
         raise PvgraphError(f"unknown scenario(s) {unknown}; valid: {', '.join(scenario_names())}")
     settle = args.settle if args.settle is not None else (args.t_end or 8.0)
-    if settle <= 0:
-        raise PvgraphError(f"--settle must be > 0 s, got {settle}")
+    if not (math.isfinite(settle) and settle > 0):
+        option = "--settle" if args.settle is not None else "--t-end"
+        raise PvgraphError(f"{option} must be a finite time > 0 s, got {settle}")
     cases = _sweep_cases(args, valid, {"scenario": list(args.scenario)})
     if len(args.scenario) == 1:
         for c in cases:
@@ -399,7 +412,7 @@ def _configure_sweep(parser) -> None:
     g.add_argument("--settle", type=float, default=None,
                    help="simulated time to the steady state (before the solenoid step of "
                         "step tests) [s] (default: --t-end, else 8 s as pvgraph validate)")
-    g.add_argument("--after", type=float, default=2.0,
+    g.add_argument("--after", type=_positive_time, default=2.0,
                    help="simulated time after the solenoid step of step tests [s] "
                         "(default: %(default)s)")
 
@@ -593,7 +606,7 @@ def _configure_validate(v) -> None:
 
 
 def _configure_simulate(parser) -> None:
-    parser.add_argument("--t-switch", type=float, default=8.0,
+    parser.add_argument("--t-switch", type=_positive_time, default=8.0,
                         help="PVG 32 scenarios: solenoid L2 switching time of step tests [s]")
 
 

@@ -287,3 +287,40 @@ def test_sweep_refusing_an_earlier_record_gives_the_option_spelling(rig, tmp_pat
     assert "holds the record of an earlier sweep (1 case, 1 finished): resume it (--resume), " \
            "replace it (--overwrite) or give another folder" in err
     assert "resume=True" not in err and "overwrite=True" not in err
+
+
+# --------------------------------------------------------------------------------------------
+# scenario sweeps and simulate: times of the PVG 32 scenarios
+
+@pytest.mark.parametrize("value", ["-1", "0", "nan", "inf", "abc"])
+def test_scenario_sweep_checks_after_before_running(value, tmp_path, capsys):
+    out = tmp_path / "p9"
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", "--scenario", "test-2", "--param", "U_input=4.2", "--after", value,
+              "--out", str(out)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "pvgraph sweep: error: argument --after:" in err and value in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("option, value", [("--settle", "nan"), ("--settle", "-1"),
+                                           ("--t-end", "nan")])
+def test_scenario_sweep_checks_settle_before_running(option, value, tmp_path, capsys):
+    out = tmp_path / "p9"
+    assert main(["sweep", "--scenario", "test-2", "--param", "U_input=4.2", option, value,
+                 "--out", str(out)]) == 2
+    assert f"pvgraph sweep: error: {option} must be a finite time > 0 s" in \
+        capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("value", ["-1", "nan"])
+def test_simulate_names_t_switch(value, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["simulate", "test-2", "--t-switch", value])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert f"pvgraph simulate: error: argument --t-switch: must be a finite time > 0 s, got " \
+           f"{value}" in err
+    assert "TimedOnOffValve" not in err
