@@ -1247,12 +1247,19 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     args._argv = list(sys.argv[1:] if argv is None else argv)   # the options as typed
     before = os.environ.get("PVGRAPH_BACKEND")
-    if args.eval is not None:   # in the environment, so worker processes see it too
-        os.environ["PVGRAPH_BACKEND"] = args.eval
+    backend = args.eval
+    if backend is None and before is not None:      # as compile() reads it: checked here
+        backend = before.strip().lower()
+        if backend not in ("", "python", "c", "auto"):
+            print(f"pvgraph {args.command}: error: PVGRAPH_BACKEND={before!r}: choose "
+                  f"python, c or auto (or unset it; --eval overrides it)", file=sys.stderr)
+            return 2
+    if backend is not None and backend != before:   # in the environment, so worker
+        os.environ["PVGRAPH_BACKEND"] = backend     # processes see it too
     try:
         return _run(args, argv)
     finally:
-        if args.eval is not None and argv is not None:  # called in-process: as it was
+        if backend != before and argv is not None:  # called in-process: as it was
             if before is None:
                 os.environ.pop("PVGRAPH_BACKEND", None)
             else:

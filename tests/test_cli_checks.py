@@ -324,3 +324,24 @@ def test_simulate_names_t_switch(value, capsys):
     assert f"pvgraph simulate: error: argument --t-switch: must be a finite time > 0 s, got " \
            f"{value}" in err
     assert "TimedOnOffValve" not in err
+
+
+# --------------------------------------------------------------------------------------------
+# PVGRAPH_BACKEND
+
+def test_a_misspelt_pvgraph_backend_exits_2_naming_the_variable(rig, monkeypatch, capsys):
+    monkeypatch.setenv("PVGRAPH_BACKEND", "cc")
+    assert main(["simulate", rig, "--t-end", "0.1"]) == 2
+    captured = capsys.readouterr()
+    assert "pvgraph simulate: error: PVGRAPH_BACKEND='cc': choose python, c or auto" in \
+        captured.err
+    assert "Traceback" not in captured.err and "final" not in captured.out
+
+
+def test_pvgraph_backend_in_capitals_is_read_as_written_in_lower_case(rig, monkeypatch,
+                                                                     capsys):
+    monkeypatch.setenv("PVGRAPH_BACKEND", " Python ")
+    assert main(["simulate", rig, "--t-end", "0.1", "--var", "node.port.p"]) == 0
+    assert "node.port.p  final" in capsys.readouterr().out
+    import os
+    assert os.environ["PVGRAPH_BACKEND"] == " Python "     # the caller's value, as it was
