@@ -184,14 +184,30 @@ def _import_file(path: str):
     return module
 
 
-def load_target(spec: str, options: dict | None = None) -> Target:
-    """The :class:`Target` a command-line argument names (see the module docstring)."""
+def _allowed_modules(names) -> tuple[str, ...]:
+    """The ``--module`` names, each imported (also from the working directory) to check it."""
+    for name in names:
+        try:
+            _import_module_here(name)
+        except ImportError as exc:
+            raise PvgraphError(f"--module {name}: cannot import it: {exc}") from None
+    return tuple(names)
+
+
+def load_target(spec: str, options: dict | None = None, modules=()) -> Target:
+    """The :class:`Target` a command-line argument names (see the module docstring);
+    ``modules`` are the modules whose component classes a model file may name."""
     options = dict(options or {})
     if spec.endswith((".toml", ".json")) and ":" not in spec:
         from .modelfile import load
         if not os.path.isfile(spec):
             raise PvgraphError(f"no such model file {spec!r}")
-        return Target(spec, lambda: load(spec), description=f"model file {spec}")
+        allowed = _allowed_modules(modules)
+        return Target(spec, lambda: load(spec, modules=allowed),
+                      description=f"model file {spec}")
+    if modules:
+        raise PvgraphError(f"--module applies to a model file target (.toml, .json), not to "
+                           f"{spec}")
     module_part, colon, attr = spec.rpartition(":")
     if colon and module_part and (module_part.endswith(".py") or "/" in module_part
                                   or os.sep in module_part):
@@ -282,7 +298,7 @@ def _target(args) -> Target:
                                f"{args.target}: give your builder's arguments with "
                                f"--option NAME=VALUE")
     generic = _parse_options(getattr(args, "option", None))
-    target = load_target(args.target, {**options, **generic})
+    target = load_target(args.target, {**options, **generic}, getattr(args, "module", None) or ())
     if generic:
         missing = set(generic) - set(target.options)
         if missing:
@@ -451,8 +467,14 @@ def cmd_export(args) -> int:
         path = export_fmu(circuit, args.out, outputs=args.var or list(target.variables),
                           inputs=args.input or [], parameters=args.parameter or [])
     else:
-        from .modelfile import save
+        from .modelfile import foreign_modules, save
         path = save(circuit, args.out)
+        foreign = foreign_modules(circuit)
+        if foreign:
+            print(f"pvgraph export: note: {path} names component types of "
+                  f"{', '.join(foreign)}, outside the library; loading it needs "
+                  f"{' '.join('--module ' + m for m in foreign)} (in Python: load(path, "
+                  f"modules={foreign!r}))", file=sys.stderr)
     print(f"wrote {path}")
     return 0
 
@@ -685,9 +707,9 @@ def run_sweep(args, run, cases, units, check):
     return result, backend
 
 
-def _target_circuit(target: str, options: dict):
+def _target_circuit(target: str, options: dict, modules=()):
     """The circuit of a command-line target (a picklable factory for the sweep's workers)."""
-    return load_target(target, options).circuit()
+    return load_target(target, options, modules).circuit()
 
 
 def _noted_case(run, **params) -> dict:
@@ -782,7 +804,8 @@ def cmd_sweep(args) -> int:
     # compiled once per worker; each case runs with its values as runtime parameters
     from .analysis.sweep import CompiledRun
     run = functools.partial(_noted_case, CompiledRun(
-        functools.partial(_target_circuit, args.target, target.options),
+        functools.partial(_target_circuit, args.target, target.options,
+                          tuple(args.module or ())),
         outputs=dict(zip(outputs, resolved)), t_end=None if args.steady else t_end,
         rtol=args.rtol, steady=args.steady, warm=args.steady))
     units = {n: system.unit(r) for n, r in zip(outputs, resolved)}
@@ -1066,6 +1089,9 @@ def _add_target(p, help_text="circuit: FILE.py:FUNCTION, MODULE:FUNCTION, a mode
     p.add_argument("target", nargs="?" if optional else None, help=help_text)
     p.add_argument("--option", "-o", action="append", metavar="KEY=VALUE",
                    help="keyword argument for the circuit's builder (repeatable; JSON values)")
+    p.add_argument("--module", action="append", metavar="MODULE",
+                   help="a module whose component classes a model file target may name "
+                        "(type = \"MODULE:Class\"; repeatable)")
 
 
 def _add_sweep_backend(w) -> None:
