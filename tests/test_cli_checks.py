@@ -438,3 +438,71 @@ def test_a_circuit_of_the_checkout_components_package_round_trips(tmp_path):
     # a file written before with the checkout's module name loads too
     old = text.replace('type = "FlowSource"', 'type = "components.hydraulic.sources:FlowSource"')
     assert type(loads(old)["pump"]) is library.FlowSource
+
+
+# --------------------------------------------------------------------------------------------
+# module entry points: python -m pvgraph, pvgraph.docgen, pvgraph.circuits.figures
+
+def test_python_m_pvgraph_is_the_pvgraph_command(rig, tmp_path):
+    import os
+    import subprocess
+    import sys
+    env = {**os.environ, "PYTHONPATH": os.getcwd()}
+    ok = subprocess.run([sys.executable, "-m", "pvgraph", "simulate", rig, "--t-end", "0.1",
+                         "--var", "node.port.p"], capture_output=True, text=True, env=env,
+                        timeout=120)
+    assert ok.returncode == 0, ok.stderr
+    assert "node.port.p  final" in ok.stdout
+    bad = subprocess.run([sys.executable, "-m", "pvgraph", "simulate", rig, "--var", "nope"],
+                         capture_output=True, text=True, env=env, timeout=120)
+    assert bad.returncode == 2
+    assert "pvgraph simulate: error: --var 'nope' is not a variable" in bad.stderr
+
+
+def test_docgen_parses_its_arguments(tmp_path, monkeypatch, capsys):
+    from pvgraph import docgen
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exc:
+        docgen.main(["--help"])
+    assert exc.value.code == 0
+    assert "usage: python -m pvgraph.docgen [-h] [output]" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exc:
+        docgen.main(["--bogus"])
+    assert exc.value.code == 2
+    assert list(tmp_path.iterdir()) == []                  # no file named after an option
+    assert docgen.main([str(tmp_path / "ref.md")]) == 0
+    assert (tmp_path / "ref.md").read_text().startswith(docgen.TITLE)
+
+
+def test_docgen_outside_a_source_checkout_needs_a_file(tmp_path, monkeypatch, capsys):
+    from pvgraph import docgen
+    installed = tmp_path / "site-packages" / "docs" / "components.md"
+    monkeypatch.setattr(docgen, "DEFAULT_OUTPUT", installed)
+    monkeypatch.setattr(docgen, "_in_checkout", lambda output=installed: False)
+    with pytest.raises(SystemExit) as exc:
+        docgen.main([])
+    assert exc.value.code == 2
+    assert "pvgraph is installed, not a source checkout" in capsys.readouterr().err
+    assert not (tmp_path / "site-packages").exists()
+
+
+def test_in_checkout_tells_a_checkout_from_an_installed_package(tmp_path):
+    from pvgraph.docgen import _in_checkout
+    (tmp_path / "site-packages" / "pvgraph").mkdir(parents=True)
+    assert not _in_checkout(tmp_path / "site-packages" / "docs" / "components.md")
+    (tmp_path / "repo" / "docs").mkdir(parents=True)
+    (tmp_path / "repo" / "pyproject.toml").write_text("[project]\n")
+    assert _in_checkout(tmp_path / "repo" / "docs" / "components.md")
+
+
+def test_figures_module_parses_its_arguments(tmp_path, monkeypatch, capsys):
+    figures = pytest.importorskip("pvgraph.circuits.figures")
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exc:
+        figures.main(["--help"])
+    assert exc.value.code == 0
+    assert "usage: python -m pvgraph.circuits.figures" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exc:
+        figures.main(["--bogus"])
+    assert exc.value.code == 2
+    assert list(tmp_path.iterdir()) == []
