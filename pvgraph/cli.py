@@ -905,6 +905,10 @@ def cmd_linearize(args) -> int:
         return handler[0](args)
     _refuse_repeats(args.input, "--input")
     _refuse_repeats(args.output, "--output")
+    if args.json and args.bode and os.path.realpath(args.json) == os.path.realpath(args.bode):
+        raise PvgraphError(f"--json and --bode name the same file {args.json!r}; give the "
+                           f"JSON record its own name, e.g. "
+                           f"{os.path.splitext(args.json)[0] + '.json'!r}")
     target = _target(args)
     circuit = target.circuit()
     if not args.input:

@@ -506,3 +506,13 @@ def test_figures_module_parses_its_arguments(tmp_path, monkeypatch, capsys):
         figures.main(["--bogus"])
     assert exc.value.code == 2
     assert list(tmp_path.iterdir()) == []
+
+
+def test_linearize_json_and_bode_naming_one_file_exit_2(rig, tmp_path, capsys):
+    path = tmp_path / "lin.png"
+    assert main(["linearize", rig, "--input", "pump.Q", "--output", "node.port.p", "--json",
+                 str(path), "--bode", str(path)]) == 2
+    captured = capsys.readouterr()
+    assert f"--json and --bode name the same file '{path}'" in captured.err
+    assert f"'{tmp_path / 'lin.json'}'" in captured.err
+    assert "DC gain" not in captured.out and not path.exists()
