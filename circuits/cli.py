@@ -24,7 +24,8 @@ import sys
 import time
 
 from pvgraph.cli import (_check_outputs, _display, _frequency_response, _noted_case, _progress,
-                         _sweep_cases, _write_json_atomic, json_path, output_dir, run_sweep)
+                         _refuse_repeats, _sweep_cases, _write_json_atomic, json_path,
+                         output_dir, run_sweep)
 from pvgraph.errors import InitializationError, ParameterError, PvgraphError, SolverError
 from pvgraph.units import to_bar, to_lpm, to_mm
 
@@ -49,9 +50,11 @@ def cmd_validate(args) -> int:
     unknown = [n for n in names if n not in scenario_names()]
     if unknown:
         raise PvgraphError(f"unknown scenario(s) {unknown}; valid: {', '.join(scenario_names())}")
+    _refuse_repeats(args.scenario, "--scenario")
     _check_cross_validation_options(args)
     _check_json_beside_out(args)
     params = _preset(args.preset)
+    _check_calibration_options(args, params)
     label = f"preset '{args.preset}'"
     os.makedirs(args.out, exist_ok=True)
     if args.calibrate:
@@ -123,13 +126,33 @@ def _check_json_beside_out(args) -> None:
                            f"{os.path.join(args.out, 'validation.json')!r}")
 
 
+def _check_calibration_options(args, params) -> None:
+    """--fit goes with --calibrate, names fittable parameters once each, and the fit needs the
+    laminar load: checked before any run (and before --out is made)."""
+    if args.fit and not args.calibrate:
+        raise PvgraphError("--fit only applies with --calibrate")
+    if not args.calibrate:
+        return
+    if args.law != "laminar":
+        raise PvgraphError("--calibrate fits the laminar load constants; use --law laminar")
+    _refuse_repeats(args.fit, "--fit")
+    from pvgraph.circuits import calibration as C
+    for path in args.fit or []:
+        try:
+            C.fit_parameter(path, params)      # unknown names fail here, before any solving
+        except PvgraphError as exc:
+            raise PvgraphError(f"--fit {path}: {exc}") from None
+
+
 def _check_cross_validation_options(args) -> None:
     """--fold and --meter-out go with --cross-validate, and fold names exist: checked before
     any run."""
     given = [opt for opt, value in (("--fold", args.fold), ("--meter-out", args.meter_out))
              if value]
     if given and not args.cross_validate:
-        raise PvgraphError(f"{' and '.join(given)} only apply with --cross-validate")
+        raise PvgraphError(f"{' and '.join(given)} only appl{'y' if len(given) > 1 else 'ies'} "
+                           f"with --cross-validate")
+    _refuse_repeats(args.fold, "--fold")
     if args.fold:
         from pvgraph.circuits.crossval import fold_keys
         keys = fold_keys()

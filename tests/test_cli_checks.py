@@ -516,3 +516,26 @@ def test_linearize_json_and_bode_naming_one_file_exit_2(rig, tmp_path, capsys):
     assert f"--json and --bode name the same file '{path}'" in captured.err
     assert f"'{tmp_path / 'lin.json'}'" in captured.err
     assert "DC gain" not in captured.out and not path.exists()
+
+
+# --------------------------------------------------------------------------------------------
+# validate: options that only apply together, names given twice
+
+@pytest.mark.parametrize("args, message", [
+    (["--fit", "rig.supply_voltage"], "--fit only applies with --calibrate"),
+    (["--calibrate", "--fit", "rig.nonexistent"], "--fit rig.nonexistent: 'rig.nonexistent' "
+                                                  "cannot be calibrated"),
+    (["--calibrate", "--fit", "rig.pump_flow", "--fit", "rig.pump_flow"],
+     "--fit rig.pump_flow is given twice"),
+    (["--calibrate", "--law", "turbulent"], "--calibrate fits the laminar load constants"),
+    (["--scenario", "test-2", "--scenario", "test-2"], "--scenario test-2 is given twice"),
+    (["--fold", "U = 4.6 V", "--meter-out", "ratio"],
+     "--fold and --meter-out only apply with --cross-validate"),
+])
+def test_validate_option_mistakes_exit_2_before_the_out_folder_is_made(args, message, tmp_path,
+                                                                       capsys):
+    out = tmp_path / "v5"
+    assert main(["validate", "--no-plots", "--out", str(out), *args]) == 2
+    captured = capsys.readouterr()
+    assert f"pvgraph validate: error: {message}" in captured.err
+    assert "PVG 32 on the lab rig" not in captured.out and not out.exists()
