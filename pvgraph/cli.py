@@ -464,6 +464,9 @@ def cmd_export(args) -> int:
     circuit = target.circuit()
     if fmu:
         from .fmi import export_fmu
+        if not (args.var or target.variables):
+            raise PvgraphError(f"an FMU needs at least one output: give --var NAME (the names: "
+                               f"pvgraph vars {args.target})")
         path = export_fmu(circuit, args.out, outputs=args.var or list(target.variables),
                           inputs=args.input or [], parameters=args.parameter or [])
     else:
@@ -1257,11 +1260,25 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _ours(filename) -> bool:
+    """Whether a warning was issued from pvgraph's own code (its packages, the component
+    library, the registered applications shipped with it): its source line means nothing to
+    the command's user."""
+    if not filename:
+        return False
+    where = os.path.realpath(filename)
+    roots = [os.path.dirname(os.path.realpath(__file__))]
+    for name in ("pvgraph.components", "pvgraph.circuits"):
+        module = sys.modules.get(name)
+        roots += [os.path.realpath(p) for p in getattr(module, "__path__", None) or []]
+    return any(where.startswith(root + os.sep) for root in roots)
+
+
 def _show_warning(command, message, category, filename, lineno, file=None, line=None):
     """pvgraph's own warnings as one plain line; other libraries' as Python prints them."""
     from .errors import PlausibilityWarning
     from .system import RecompileWarning
-    if issubclass(category, (PlausibilityWarning, RecompileWarning)):
+    if issubclass(category, (PlausibilityWarning, RecompileWarning)) or _ours(filename):
         print(f"pvgraph {command}: warning: {message}", file=file or sys.stderr)
     else:
         print(warnings.formatwarning(message, category, filename, lineno, line),

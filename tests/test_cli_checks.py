@@ -539,3 +539,23 @@ def test_validate_option_mistakes_exit_2_before_the_out_folder_is_made(args, mes
     captured = capsys.readouterr()
     assert f"pvgraph validate: error: {message}" in captured.err
     assert "PVG 32 on the lab rig" not in captured.out and not out.exists()
+
+
+def test_export_fmu_without_var_names_the_option(rig, tmp_path, capsys):
+    path = tmp_path / "m.fmu"
+    assert main(["export", rig, "--out", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "pvgraph export: error: an FMU needs at least one output: give --var NAME" in err
+    assert "export_fmu needs" not in err and not path.exists()
+
+
+def test_pvgraphs_own_user_warnings_print_as_one_plain_line(rig, monkeypatch, capsys):
+    """A warning pvgraph issues (here: an input without first-order effect) is one line
+    naming the command, not Python's format with a source line of pvgraph."""
+    import sys
+    monkeypatch.setattr(sys, "argv", ["pvgraph", "linearize", rig, "--input", "node.V",
+                                      "--output", "node.port.p"])
+    main()
+    err = capsys.readouterr().err
+    assert "pvgraph linearize: warning: linearize_circuit: input(s) ['node.V']" in err
+    assert "UserWarning" not in err and "cli.py" not in err
