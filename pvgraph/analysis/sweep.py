@@ -1160,10 +1160,18 @@ class CompiledRun:
                              "build= (case names are the builder's arguments), not both")
         if build is not None and not callable(build):
             raise SweepError(f"build must be callable, got {type(build).__name__}")
-        if steady == (t_end is not None):
+        if steady and t_end is not None:
+            raise SweepError("CompiledRun takes t_end= (simulate) or steady=True (steady "
+                             "states), not both")
+        if not steady and t_end is None:
             raise SweepError("CompiledRun needs either t_end= (simulate) or steady=True")
         if t_end is not None and not (isinstance(t_end, numbers.Real) and t_end > 0):
             raise SweepError(f"t_end must be a positive time [s], got {t_end!r}")
+        for what, value in (("rtol", rtol), ("tol", tol)):
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or \
+                    not (math.isfinite(value) and 0 < value < 1):
+                raise SweepError(f"CompiledRun: {what} must be a number between 0 and 1, e.g. "
+                                 f"1e-6, got {value!r}")
         if isinstance(outputs, Mapping):
             outputs = dict(outputs)
         else:
@@ -1399,6 +1407,10 @@ def _range_spec(name, spec):
     else:
         raise SweepError(f"random_sample: {name!r} must be (lo, hi), ('log', lo, hi) or a "
                          f"constant, got {spec!r}")
+    if any(isinstance(v, str) for v in (lo, hi)):
+        raise SweepError(f"random_sample: the range of {name!r} takes numbers (SI), got "
+                         f"{spec!r}; convert quantities first, e.g. "
+                         f"pvgraph.units.to_si('2 mm^2')")
     if not all(isinstance(v, numbers.Real) and math.isfinite(v) for v in (lo, hi)) or \
             not lo < hi:
         raise SweepError(f"random_sample: the range of {name!r} needs finite lo < hi, got "
