@@ -335,6 +335,9 @@ def _toml_node(lines: list, prefix: str, node: dict) -> None:
 
 def dumps(circuit: Circuit, fmt: str = "toml") -> str:
     """The model file of ``circuit`` as text, ``fmt`` "toml" or "json"."""
+    if not circuit.components:
+        raise ModelFileError(f"circuit {circuit.name!r} has no components: a model file of it "
+                             f"could not be loaded")
     data = to_dict(circuit)
     if fmt == "json":
         return json.dumps(data, indent=1, allow_nan=False) + "\n"
@@ -391,6 +394,18 @@ class _Loader:
         self.known = _library_classes(modules)
         self.errors: list[tuple[int, str]] = []     # (line or 0, message), in file order
 
+
+    @staticmethod
+    def _at_fault(cls, child) -> str:
+        """``"start"`` when the parameters alone make the component (its start values are at
+        fault), else ``"params"``: the key whose line an error names."""
+        if not child.start:
+            return "params"
+        try:
+            cls(**child.params)
+        except (ParameterError, CircuitError):
+            return "params"
+        return "start"
     def fail(self, loc, message, find=None) -> None:
         line = _line_of(self.text, find or loc)
         where = f"{self.source}" + (f", line {line}" if line else "")
@@ -442,7 +457,7 @@ class _Loader:
                 try:
                     comp = cls(**child.params, start=dict(child.start) or None)
                 except ParameterError as exc:
-                    self.fail(here + ("params",), str(exc))
+                    self.fail(here + (self._at_fault(cls, child),), str(exc))
                 except CircuitError as exc:
                     self.fail(here + ("start",), str(exc))
             if comp is None or not self.add(c, cname, comp, here):
@@ -504,6 +519,10 @@ def from_dict(data: dict, *, modules: Iterable[str] = (), text: str = "",
                    f"fluid, the file format, name, components, connections, expose and fluid")
         raise ModelFileError(f"{where} ({'.'.join(map(str, loc)) or 'top level'}): "
                              f"{msg}") from None
+    if not model.components:
+        raise ModelFileError(f"{source} (top level): the model file holds no components; a "
+                             f"circuit is written as [components.NAME] tables (type = "
+                             f"\"Orifice\", params = {{ ... }}) and connections")
     loader = _Loader(text, source, modules)
     root = CircuitEntry(type="Circuit", components=model.components,
                         connections=model.connections, expose=model.expose, fluid=model.fluid)
