@@ -855,6 +855,7 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
                              f"outputs or give it another label (outputs={{'{clash[0]} out': "
                              f"'{run.outputs[clash[0]]}'}})")
         run.validate(cases[0])      # names wrong for every case: told before any case runs
+        cases = run.in_si(cases)    # records are SI, as the files say
     records: dict[int, CaseResult] = {}
     log_path = None if out is None else os.path.join(os.fspath(out), LOG_NAME)
     identity = run_identity(run)
@@ -1263,6 +1264,32 @@ class CompiledRun:
             except (KeyError, PvgraphError) as exc:
                 text = exc.args[0] if exc.args else str(exc)
                 raise SweepError(f"CompiledRun: output {label!r}: {text}") from None
+
+    def in_si(self, cases: list[dict]) -> list[dict]:
+        """``cases`` with each quantity (``"1 mm^2"``) of a circuit parameter declaring a unit
+        as its SI number, so that the records hold one kind of value per column; other values
+        (numbers, choices, builder arguments) as given, and a quantity that does not convert
+        as given (its case then fails with the parameter's own message)."""
+        from ..units import declared_unit, is_quantity, to_unit
+        if self.circuit is None or not any(isinstance(v, str) and is_quantity(v)
+                                           for c in cases for v in c.values()):
+            return cases
+        valid = self._circuit().parameters()
+        out = []
+        for case in cases:
+            case = dict(case)
+            for name, value in case.items():
+                if not (isinstance(value, str) and name in valid) or \
+                        isinstance(valid[name][0], str):
+                    continue
+                unit = declared_unit(valid[name][1])
+                if unit:
+                    try:
+                        case[name] = float(to_unit(value, unit, name))
+                    except PvgraphError:
+                        pass
+            out.append(case)
+        return out
 
     def compilations(self) -> int:
         """Compilations this object (or its key) caused in this process."""

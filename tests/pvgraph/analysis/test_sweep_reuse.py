@@ -254,3 +254,17 @@ def test_random_sample_of_quantities_says_to_convert_them():
                                          r"numbers \(SI\), got \('1 mm\^2', '2 mm\^2'\); "
                                          r"convert quantities first"):
         random_sample({"orifice.A": ("1 mm^2", "2 mm^2")}, 3)
+
+
+def test_quantities_in_the_cases_are_recorded_in_si(tmp_path):
+    """A case value written with a unit runs converted and is recorded as its SI number, so
+    that a column of sweep.csv holds one kind of value."""
+    run = CompiledRun(orifice_bench, outputs={"p": "node.port.p"}, steady=True, tol=1e-12)
+    result = sweep(run, grid({"orifice.A": ["1 mm^2", 2e-6]}), backend="serial", out=tmp_path)
+    assert list(result.column("orifice.A")) == [pytest.approx(1e-6), 2e-6]
+    assert all(isinstance(r.params["orifice.A"], float) for r in result)
+    p = result.column("p")
+    assert p[0] == pytest.approx(RHO / 2 * (1e-4 / (CD * 1e-6)) ** 2, rel=1e-6)
+    rows = (tmp_path / "sweep.csv").read_text().splitlines()
+    assert [float(line.split(",")[3]) for line in rows[1:]] == [pytest.approx(1e-6), 2e-6]
+    assert "mm^2" not in (tmp_path / "cases.jsonl").read_text()
