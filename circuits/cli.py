@@ -25,7 +25,7 @@ import time
 
 from pvgraph.cli import (_check_outputs, _display, _frequency_response, _noted_case, _progress,
                          _refuse_repeats, _sweep_cases, _write_json_atomic, json_path,
-                         output_dir, run_sweep)
+                         output_dir, run_sweep, time_arg)
 from pvgraph.errors import InitializationError, ParameterError, PvgraphError, SolverError
 from pvgraph.units import to_bar, to_lpm, to_mm
 
@@ -168,10 +168,7 @@ def _check_cross_validation_options(args) -> None:
 def _positive_time(text: str) -> float:
     """argparse type of --after and --t-switch: a finite time > 0 s."""
     import argparse
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    value = time_arg(text)
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"must be a finite time > 0 s, got {text}")
     return value
@@ -432,7 +429,7 @@ def _configure_sweep(parser) -> None:
                    help="lab scenario (test-1 ... test-12, sweep-1 ... sweep-7); repeat to sweep "
                         "over several. --param then names U_input or a dotted PVG32Params "
                         "field (rig.return_line_K, pve.input_gain)")
-    g.add_argument("--settle", type=float, default=None,
+    g.add_argument("--settle", type=time_arg, default=None,
                    help="simulated time to the steady state (before the solenoid step of "
                         "step tests) [s] (default: --t-end, else 8 s as pvgraph validate)")
     g.add_argument("--after", type=_positive_time, default=2.0,

@@ -1010,6 +1010,20 @@ def _per(out_unit: str, in_unit: str) -> str:
 
 
 # --------------------------------------------------------------------------------------------
+def time_arg(text: str) -> float:
+    """argparse type of a time option: seconds, as a number or with a unit ("2 s", "500 ms");
+    its range is checked where it is used."""
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    try:
+        return float(to_unit(text.strip(), "s", "time"))
+    except ParameterError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a time: give seconds, e.g. 2 or "
+                                         f"'500 ms'") from None
+
+
 def _tolerance(text: str) -> float:
     """argparse type of --rtol: a number in (0, 1)."""
     try:
@@ -1153,7 +1167,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = parsers["simulate"] = sub.add_parser(
         "simulate", help="simulate a circuit and print final values")
     _add_target(s)
-    s.add_argument("--t-end", type=float, default=None,
+    s.add_argument("--t-end", type=time_arg, default=None,
                    help=f"end time [s] (default: the circuit's, else {DEFAULT_T_END:g})")
     s.add_argument("--solver", default="pvgraph", choices=["pvgraph", "ida"],
                    help="the built-in IDA-style solver (default) or SUNDIALS IDA through "
@@ -1202,7 +1216,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "exit 1 when a case failed, timed out or gave a non-finite output.")
     _add_target(w, optional=True)
     w.add_argument("--var", action="append", help="output variable (repeatable)")
-    w.add_argument("--t-end", type=float, default=None, help="simulated time per case [s]")
+    w.add_argument("--t-end", type=time_arg, default=None, help="simulated time per case [s]")
     w.add_argument("--rtol", type=_tolerance, default=1e-6,
                    help="relative tolerance (default: %(default)s)")
     w.add_argument("--steady", action="store_true",

@@ -559,3 +559,14 @@ def test_pvgraphs_own_user_warnings_print_as_one_plain_line(rig, monkeypatch, ca
     err = capsys.readouterr().err
     assert "pvgraph linearize: warning: linearize_circuit: input(s) ['node.V']" in err
     assert "UserWarning" not in err and "cli.py" not in err
+
+
+def test_t_end_takes_a_time_with_its_unit(rig, capsys):
+    assert main(["simulate", rig, "--t-end", "100 ms", "--var", "node.port.p", "--si"]) == 0
+    with_unit = capsys.readouterr().out
+    assert main(["simulate", rig, "--t-end", "0.1", "--var", "node.port.p", "--si"]) == 0
+    assert capsys.readouterr().out == with_unit
+    with pytest.raises(SystemExit) as exc:
+        main(["simulate", rig, "--t-end", "1 bar"])
+    assert exc.value.code == 2
+    assert "argument --t-end: '1 bar' is not a time" in capsys.readouterr().err
