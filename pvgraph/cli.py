@@ -324,8 +324,19 @@ def check_names(system, names, what: str = "--var") -> list[str]:
 # --------------------------------------------------------------------------------------------
 # simulate, vars, graph, export, components, circuits
 
+def _need_matplotlib(option: str) -> None:
+    """A figure option without matplotlib installed is refused before anything runs."""
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise PvgraphError(f"{option} draws with matplotlib, which is not installed: pip "
+                           f"install matplotlib") from None
+
+
 def cmd_simulate(args) -> int:
     from .simulate import _solver_function, simulate
+    if args.plot:
+        _need_matplotlib("--plot")
 
     if args.solver != "pvgraph":
         try:
@@ -438,6 +449,9 @@ def cmd_graph(args) -> int:
                            f".{suffix}; name it "
                            f"{os.path.splitext(args.out)[0] + '.' + args.format!r} or leave "
                            f"--format out")
+    if (args.format or suffix) != "dot":
+        _need_matplotlib(f"--format {args.format}" if args.format else
+                         f"--out {args.out!r} (a .{suffix} drawing)")
     target = _target(args)
     out = draw_circuit(target.circuit(), args.out, fmt=args.format or suffix)
     print(f"wrote {out}")
@@ -908,6 +922,8 @@ def cmd_linearize(args) -> int:
         return handler[0](args)
     _refuse_repeats(args.input, "--input")
     _refuse_repeats(args.output, "--output")
+    if args.bode:
+        _need_matplotlib("--bode")
     if args.json and args.bode and os.path.realpath(args.json) == os.path.realpath(args.bode):
         raise PvgraphError(f"--json and --bode name the same file {args.json!r}; give the "
                            f"JSON record its own name, e.g. "

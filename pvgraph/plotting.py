@@ -8,13 +8,29 @@ from __future__ import annotations
 
 import os
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from .errors import PvgraphError
+from .units import display
 
-from .units import display  # noqa: E402
+
+class _NoMatplotlib:
+    """``plt`` where matplotlib is not installed: a figure asked for says so (a DOT drawing
+    needs no matplotlib)."""
+
+    def __getattr__(self, name):
+        raise PvgraphError('this figure is drawn with matplotlib, which is not installed: '
+                           'pip install matplotlib')
+
+
+try:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+except ModuleNotFoundError as exc:
+    if exc.name != "matplotlib":
+        raise
+    plt = _NoMatplotlib()
 
 __all__ = ["plot_solution", "draw_circuit", "plot_bode", "plot_step_response",
            "plot_opening_areas"]
@@ -165,7 +181,6 @@ def draw_circuit(circuit, path, *, fmt=None):
     """
     path = os.fspath(path)
     if os.path.isdir(path):
-        from .errors import PvgraphError
         raise PvgraphError(f"draw_circuit: {path!r} is a folder; give the file to write "
                            f"(e.g. {os.path.join(path, circuit.name + '.png')!r})")
     suffix = os.path.splitext(path)[1].lstrip(".").lower()
@@ -181,6 +196,8 @@ def draw_circuit(circuit, path, *, fmt=None):
         return _write_dot(circuit, nodes, edges, groups, path)
     if fmt not in ("png", "svg"):
         raise ValueError(f"draw_circuit: format {fmt!r}; choose png, svg or dot")
+    if isinstance(plt, _NoMatplotlib):
+        plt.subplots        # noqa: B018  (raises: matplotlib is not installed)
     import matplotlib.patches as mpatches
     from matplotlib.lines import Line2D
 

@@ -570,3 +570,30 @@ def test_t_end_takes_a_time_with_its_unit(rig, capsys):
         main(["simulate", rig, "--t-end", "1 bar"])
     assert exc.value.code == 2
     assert "argument --t-end: '1 bar' is not a time" in capsys.readouterr().err
+
+
+def test_without_matplotlib_figures_are_refused_up_front_and_dot_still_works(rig, tmp_path):
+    import os
+    import subprocess
+    import sys
+    code = (
+        "import sys; sys.modules['matplotlib'] = None\n"
+        "from pvgraph.cli import main\n"
+        f"rig, d = {rig!r}, {str(tmp_path)!r}\n"
+        "assert main(['graph', rig, '--out', d + '/c.dot']) == 0\n"
+        "assert main(['graph', rig, '--out', d + '/c.png']) == 2\n"
+        "assert main(['simulate', rig, '--plot', d + '/p.png']) == 2\n"
+        "assert main(['linearize', rig, '--input', 'pump.Q', '--output', 'node.port.p',\n"
+        "             '--bode', d + '/b.png']) == 2\n"
+        "print('checked')\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": os.getcwd()}, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "checked" in proc.stdout and "Traceback" not in proc.stderr
+    assert "pvgraph graph: error: --out " in proc.stderr
+    assert "pvgraph simulate: error: --plot draws with matplotlib, which is not installed" in \
+        proc.stderr
+    assert "pvgraph linearize: error: --bode draws with matplotlib" in proc.stderr
+    assert "final" not in proc.stdout                  # refused before simulating
+    assert (tmp_path / "c.dot").read_text().startswith("graph")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.dot", "my_rig.py"]
