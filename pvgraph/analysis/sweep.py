@@ -766,8 +766,7 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
         Unit of each output (``{"q": "m^3/s"}``), kept as metadata in the result and its files.
     resume : bool
         Keep the successful cases recorded in ``out/cases.jsonl`` (they must be the same cases,
-        recorded by the same run)
-        and run only the others.
+        recorded by the same run) and run only the others.
     overwrite : bool
         Replace the record of an earlier sweep in ``out`` (without ``resume`` or
         ``overwrite`` a folder holding one is refused: nothing recorded is lost unasked).
