@@ -597,3 +597,18 @@ def test_without_matplotlib_figures_are_refused_up_front_and_dot_still_works(rig
     assert "final" not in proc.stdout                  # refused before simulating
     assert (tmp_path / "c.dot").read_text().startswith("graph")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["c.dot", "my_rig.py"]
+
+
+def test_resume_with_other_builder_options_exits_2(rig, tmp_path, capsys):
+    out = tmp_path / "s"
+    args = ["sweep", rig, "--param", "orifice.A=1 mm^2,2 mm^2", "--var", "node.port.p",
+            "--t-end", "0.2", "--backend", "serial", "--out", str(out)]
+    assert main(args + ["--option", 'Q="10 L/min"']) == 0
+    before = (out / "cases.jsonl").read_text()
+    capsys.readouterr()
+    assert main(args + ["--option", 'Q="20 L/min"', "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert "was recorded by another run (recorded: " in err and "10 L/min" in err \
+        and "20 L/min" in err
+    assert (out / "cases.jsonl").read_text() == before
+    assert main(args + ["--option", 'Q="10 L/min"', "--resume"]) == 0

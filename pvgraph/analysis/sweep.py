@@ -1194,6 +1194,8 @@ class CompiledRun:
         import hashlib
         source = self.circuit if self.circuit is not None else self.build
         what = getattr(source, "__qualname__", None)
+        if what is None and isinstance(source, functools.partial):
+            what = run_identity(source)     # a factory with its arguments (a CLI target)
         if what is None:
             try:
                 from ..modelfile import dumps
