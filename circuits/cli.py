@@ -23,9 +23,9 @@ import os
 import sys
 import time
 
-from pvgraph.cli import (_check_outputs, _display, _frequency_response, _noted_case,
-                         _output_path, _progress, _sweep_cases, _write_json_atomic, output_dir,
-                         run_sweep)
+from pvgraph.cli import (_check_outputs, _display, _frequency_response, _noted_case, _progress,
+                         _refuse_repeats, _sweep_cases, _write_json_atomic, json_path,
+                         output_dir, run_sweep, time_arg)
 from pvgraph.errors import InitializationError, ParameterError, PvgraphError, SolverError
 from pvgraph.units import to_bar, to_lpm, to_mm
 
@@ -50,8 +50,11 @@ def cmd_validate(args) -> int:
     unknown = [n for n in names if n not in scenario_names()]
     if unknown:
         raise PvgraphError(f"unknown scenario(s) {unknown}; valid: {', '.join(scenario_names())}")
+    _refuse_repeats(args.scenario, "--scenario")
     _check_cross_validation_options(args)
+    _check_json_beside_out(args)
     params = _preset(args.preset)
+    _check_calibration_options(args, params)
     label = f"preset '{args.preset}'"
     os.makedirs(args.out, exist_ok=True)
     if args.calibrate:
@@ -99,13 +102,57 @@ def cmd_validate(args) -> int:
     return 0
 
 
+#: the files pvgraph validate writes into its --out folder (besides the default --json)
+OUT_FILES = ("validation_targets.json", "flow_vs_voltage.png", "step_dp_L3.png",
+             "calibration.json", "cross_validation.json")
+
+
+def _check_json_beside_out(args) -> None:
+    """--json is a file that is neither the --out folder, nor a folder above it, nor one of
+    the files written into it: checked before any run."""
+    if not args.json:
+        return
+    json_path = os.path.realpath(args.json)
+    out = os.path.realpath(args.out)
+    if json_path == out or out.startswith(json_path.rstrip(os.sep) + os.sep):
+        where = "is the --out folder" if json_path == out else \
+            f"is a folder above --out {args.out!r}"
+        raise PvgraphError(f"--json {args.json!r} {where}; give a file name, e.g. "
+                           f"{os.path.join(args.out, 'validation.json')!r}")
+    clash = [name for name in OUT_FILES if json_path == os.path.join(out, name)]
+    if clash:
+        raise PvgraphError(f"--json {args.json!r} is the file {clash[0]} the command writes "
+                           f"into --out; give another name, e.g. "
+                           f"{os.path.join(args.out, 'validation.json')!r}")
+
+
+def _check_calibration_options(args, params) -> None:
+    """--fit goes with --calibrate, names fittable parameters once each, and the fit needs the
+    laminar load: checked before any run (and before --out is made)."""
+    if args.fit and not args.calibrate:
+        raise PvgraphError("--fit only applies with --calibrate")
+    if not args.calibrate:
+        return
+    if args.law != "laminar":
+        raise PvgraphError("--calibrate fits the laminar load constants; use --law laminar")
+    _refuse_repeats(args.fit, "--fit")
+    from pvgraph.circuits import calibration as C
+    for path in args.fit or []:
+        try:
+            C.fit_parameter(path, params)      # unknown names fail here, before any solving
+        except PvgraphError as exc:
+            raise PvgraphError(f"--fit {path}: {exc}") from None
+
+
 def _check_cross_validation_options(args) -> None:
     """--fold and --meter-out go with --cross-validate, and fold names exist: checked before
     any run."""
     given = [opt for opt, value in (("--fold", args.fold), ("--meter-out", args.meter_out))
              if value]
     if given and not args.cross_validate:
-        raise PvgraphError(f"{' and '.join(given)} only apply with --cross-validate")
+        raise PvgraphError(f"{' and '.join(given)} only appl{'y' if len(given) > 1 else 'ies'} "
+                           f"with --cross-validate")
+    _refuse_repeats(args.fold, "--fold")
     if args.fold:
         from pvgraph.circuits.crossval import fold_keys
         keys = fold_keys()
@@ -116,6 +163,15 @@ def _check_cross_validation_options(args) -> None:
             hint = f"; did you mean {' or '.join(map(repr, close))}?" if close else ""
             raise PvgraphError(f"--fold {unknown}: no such fold{hint} The folds are "
                                f"{', '.join(repr(k) for k in keys)}")
+
+
+def _positive_time(text: str) -> float:
+    """argparse type of --after and --t-switch: a finite time > 0 s."""
+    import argparse
+    value = time_arg(text)
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite time > 0 s, got {text}")
+    return value
 
 
 def _positive_int(text: str) -> int:
@@ -340,8 +396,9 @@ def sweep_scenarios(args) -> int:
     if unknown:
         raise PvgraphError(f"unknown scenario(s) {unknown}; valid: {', '.join(scenario_names())}")
     settle = args.settle if args.settle is not None else (args.t_end or 8.0)
-    if settle <= 0:
-        raise PvgraphError(f"--settle must be > 0 s, got {settle}")
+    if not (math.isfinite(settle) and settle > 0):
+        option = "--settle" if args.settle is not None else "--t-end"
+        raise PvgraphError(f"{option} must be a finite time > 0 s, got {settle}")
     cases = _sweep_cases(args, valid, {"scenario": list(args.scenario)})
     if len(args.scenario) == 1:
         for c in cases:
@@ -372,10 +429,10 @@ def _configure_sweep(parser) -> None:
                    help="lab scenario (test-1 ... test-12, sweep-1 ... sweep-7); repeat to sweep "
                         "over several. --param then names U_input or a dotted PVG32Params "
                         "field (rig.return_line_K, pve.input_gain)")
-    g.add_argument("--settle", type=float, default=None,
+    g.add_argument("--settle", type=time_arg, default=None,
                    help="simulated time to the steady state (before the solenoid step of "
                         "step tests) [s] (default: --t-end, else 8 s as pvgraph validate)")
-    g.add_argument("--after", type=float, default=2.0,
+    g.add_argument("--after", type=_positive_time, default=2.0,
                    help="simulated time after the solenoid step of step tests [s] "
                         "(default: %(default)s)")
 
@@ -535,7 +592,7 @@ def _scenario_rig(name: str, preset: str = "tuned", law: str = "laminar",
 def _configure_validate(v) -> None:
     v.add_argument("--out", default="pvgraph-report", type=output_dir,
                    help="output folder (default: %(default)s)")
-    v.add_argument("--json", type=_output_path,
+    v.add_argument("--json", type=json_path,
                    help="write the comparison records here (default: OUT/validation.json; "
                         "the targets go to OUT/validation_targets.json)")
     v.add_argument("--preset", default="tuned", help="parameter preset: tuned (report table 4.14) "
@@ -569,7 +626,7 @@ def _configure_validate(v) -> None:
 
 
 def _configure_simulate(parser) -> None:
-    parser.add_argument("--t-switch", type=float, default=8.0,
+    parser.add_argument("--t-switch", type=_positive_time, default=8.0,
                         help="PVG 32 scenarios: solenoid L2 switching time of step tests [s]")
 
 

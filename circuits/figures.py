@@ -119,10 +119,24 @@ def lever_mass_figure(path: str) -> str:
         title="Main-spool lever mass: dp over L3 after the L2 step")
 
 
-if __name__ == "__main__":
-    # the documentation's figures are regenerated with the folder given: docs/img
-    folder = sys.argv[1] if len(sys.argv) > 1 else "pvgraph-figures"
-    os.makedirs(folder, exist_ok=True)
+def main(argv: list[str] | None = None) -> int:
+    """Draw the documentation's extra figures into a folder; return 0 (2 for bad arguments)."""
+    import argparse
+    parser = argparse.ArgumentParser(
+        prog="python -m pvgraph.circuits.figures",
+        description="Draw the PVE delay and lever-mass step figures (about a minute); the "
+                    "documentation's are regenerated with the folder docs/img.")
+    parser.add_argument("folder", nargs="?", default="pvgraph-figures",
+                        help="output folder (default: %(default)s)")
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    if os.path.exists(args.folder) and not os.path.isdir(args.folder):
+        parser.error(f"{args.folder!r} is a file; give a folder")
+    os.makedirs(args.folder, exist_ok=True)
     for make, name in ((delay_figure, "pve_delay_steps.png"),
                        (lever_mass_figure, "lever_mass_steps.png")):
-        print("wrote", make(os.path.join(folder, name)))
+        print("wrote", make(os.path.join(args.folder, name)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -184,14 +184,30 @@ def _import_file(path: str):
     return module
 
 
-def load_target(spec: str, options: dict | None = None) -> Target:
-    """The :class:`Target` a command-line argument names (see the module docstring)."""
+def _allowed_modules(names) -> tuple[str, ...]:
+    """The ``--module`` names, each imported (also from the working directory) to check it."""
+    for name in names:
+        try:
+            _import_module_here(name)
+        except ImportError as exc:
+            raise PvgraphError(f"--module {name}: cannot import it: {exc}") from None
+    return tuple(names)
+
+
+def load_target(spec: str, options: dict | None = None, modules=()) -> Target:
+    """The :class:`Target` a command-line argument names (see the module docstring);
+    ``modules`` are the modules whose component classes a model file may name."""
     options = dict(options or {})
     if spec.endswith((".toml", ".json")) and ":" not in spec:
         from .modelfile import load
         if not os.path.isfile(spec):
             raise PvgraphError(f"no such model file {spec!r}")
-        return Target(spec, lambda: load(spec), description=f"model file {spec}")
+        allowed = _allowed_modules(modules)
+        return Target(spec, lambda: load(spec, modules=allowed),
+                      description=f"model file {spec}")
+    if modules:
+        raise PvgraphError(f"--module applies to a model file target (.toml, .json), not to "
+                           f"{spec}")
     module_part, colon, attr = spec.rpartition(":")
     if colon and module_part and (module_part.endswith(".py") or "/" in module_part
                                   or os.sep in module_part):
@@ -282,7 +298,7 @@ def _target(args) -> Target:
                                f"{args.target}: give your builder's arguments with "
                                f"--option NAME=VALUE")
     generic = _parse_options(getattr(args, "option", None))
-    target = load_target(args.target, {**options, **generic})
+    target = load_target(args.target, {**options, **generic}, getattr(args, "module", None) or ())
     if generic:
         missing = set(generic) - set(target.options)
         if missing:
@@ -308,8 +324,19 @@ def check_names(system, names, what: str = "--var") -> list[str]:
 # --------------------------------------------------------------------------------------------
 # simulate, vars, graph, export, components, circuits
 
+def _need_matplotlib(option: str) -> None:
+    """A figure option without matplotlib installed is refused before anything runs."""
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise PvgraphError(f"{option} draws with matplotlib, which is not installed: pip "
+                           f"install matplotlib") from None
+
+
 def cmd_simulate(args) -> int:
     from .simulate import _solver_function, simulate
+    if args.plot:
+        _need_matplotlib("--plot")
 
     if args.solver != "pvgraph":
         try:
@@ -413,26 +440,58 @@ def cmd_vars(args) -> int:
 
 def cmd_graph(args) -> int:
     from .plotting import draw_circuit
+    suffix = os.path.splitext(args.out)[1].lstrip(".").lower()
+    if args.format is None and suffix not in ("png", "svg", "dot"):
+        raise PvgraphError(f"--out {args.out!r}: the format comes from the extension; name "
+                           f"the file .png, .svg or .dot, or give --format")
+    if args.format is not None and suffix and suffix != args.format:
+        raise PvgraphError(f"--format {args.format} but --out {args.out!r} is named "
+                           f".{suffix}; name it "
+                           f"{os.path.splitext(args.out)[0] + '.' + args.format!r} or leave "
+                           f"--format out")
+    if (args.format or suffix) != "dot":
+        _need_matplotlib(f"--format {args.format}" if args.format else
+                         f"--out {args.out!r} (a .{suffix} drawing)")
     target = _target(args)
-    fmt = args.format or os.path.splitext(args.out)[1].lstrip(".").lower() or "png"
-    if fmt not in ("png", "svg", "dot"):
-        raise PvgraphError(f"--format {fmt!r}: choose png, svg or dot (or name the output "
-                           f"file .png, .svg or .dot)")
-    out = draw_circuit(target.circuit(), args.out, fmt=fmt)
+    out = draw_circuit(target.circuit(), args.out, fmt=args.format or suffix)
     print(f"wrote {out}")
     return 0
 
 
 def cmd_export(args) -> int:
+    fmu = args.out.endswith(".fmu")
+    if fmu:
+        for names, option in ((args.var, "--var"), (args.input, "--input"),
+                              (args.parameter, "--parameter")):
+            _refuse_repeats(names, option)
+        both = sorted(set(args.input or []) & set(args.parameter or []))
+        if both:
+            raise PvgraphError(f"{both[0]} is given as --input and as --parameter; give it "
+                               f"as one of them")
+    else:
+        given = [o for o, v in (("--var", args.var), ("--input", args.input),
+                                ("--parameter", args.parameter)) if v]
+        if given:
+            raise PvgraphError(f"{', '.join(given)} appl{'ies' if len(given) == 1 else 'y'} "
+                               f"to an FMU (--out NAME.fmu), not to a model file")
     target = _target(args)
     circuit = target.circuit()
-    if args.out.endswith(".fmu"):
+    if fmu:
         from .fmi import export_fmu
+        if not (args.var or target.variables):
+            raise PvgraphError(f"an FMU needs at least one output: give --var NAME (the names: "
+                               f"pvgraph vars {args.target})")
         path = export_fmu(circuit, args.out, outputs=args.var or list(target.variables),
                           inputs=args.input or [], parameters=args.parameter or [])
     else:
-        from .modelfile import save
+        from .modelfile import foreign_modules, save
         path = save(circuit, args.out)
+        foreign = foreign_modules(circuit)
+        if foreign:
+            print(f"pvgraph export: note: {path} names component types of "
+                  f"{', '.join(foreign)}, outside the library; loading it needs "
+                  f"{' '.join('--module ' + m for m in foreign)} (in Python: load(path, "
+                  f"modules={foreign!r}))", file=sys.stderr)
     print(f"wrote {path}")
     return 0
 
@@ -503,6 +562,41 @@ def _parse_number(text: str, name: str, unit: str | None = None) -> float:
     return value
 
 
+def _is_bare(text: str) -> bool:
+    """Whether a value of a ``--param`` spec is a plain number (read as SI)."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _check_units_not_mixed(name: str, values: list[str], spell, declared=None) -> None:
+    """A spec whose values mix plain numbers (SI) with quantities (``1:2 mm^2:3``) is
+    refused: the plain one would be read as SI, not in the other's unit. ``spell(values)``
+    writes the spec back from its values (for the correct spellings in the message);
+    ``declared`` is the parameter's SI unit."""
+    bare = [v.strip() for v in values if _is_bare(v)]
+    given = [v.strip() for v in values if not _is_bare(v)]
+    if not bare or not given:
+        return
+    from .units import _NUMBER
+    match = _NUMBER.match(given[0])
+    unit = match.group(2) if match and match.group(2) else None
+    if unit:
+        typed = [f"{v.strip()} {unit}" if _is_bare(v) else v.strip() for v in values]
+        hint = f"write '{name}={spell(typed)}'"
+        try:
+            si = [f"{_parse_number(v, name, declared):.12g}" for v in typed] if declared else None
+        except PvgraphError:
+            si = None
+        hint += f" or, in SI, '{name}={spell(si)}'" if si else ", or SI numbers for all"
+    else:
+        hint = "give every value with its unit, or SI numbers for all"
+    raise PvgraphError(f"--param {name}: {bare[0]!r} has no unit but {given[0]!r} has one, "
+                       f"and a plain number is read as SI, not in that unit: {hint}")
+
+
 def _parse_param(spec: str, random_mode: bool, units: dict | None = None):
     """``NAME=SPEC`` -> (name, grid values or random-sample range); see ``--param`` help."""
     import numpy as np
@@ -516,6 +610,7 @@ def _parse_param(spec: str, random_mode: bool, units: dict | None = None):
     parts = (body[4:] if log else body).split(":")
     if len(parts) == 1 and not log:
         values = [_parse_number(v, name, unit) for v in body.split(",")]
+        _check_units_not_mixed(name, body.split(","), ",".join, unit)
         if random_mode and len(values) > 1:
             raise PvgraphError(f"--param {name}: with --random give a range LO:HI (or "
                                f"log:LO:HI) or one fixed value, not a list")
@@ -525,12 +620,22 @@ def _parse_param(spec: str, random_mode: bool, units: dict | None = None):
             raise PvgraphError(f"--param {name}: with --random give a range LO:HI or "
                                f"log:LO:HI, not {body!r}")
         lo, hi = (_parse_number(v, name, unit) for v in parts)
+        _check_units_not_mixed(name, parts, lambda v: ("log:" if log else "") + ":".join(v),
+                               unit)
+        if not lo < hi:
+            raise PvgraphError(f"--param {name}: a random range LO:HI needs LO < HI, got "
+                               f"{body!r} ({lo:g} to {hi:g} SI)")
+        if log and lo <= 0:
+            raise PvgraphError(f"--param {name}: a log range needs positive bounds, got "
+                               f"{body!r}")
         return name, (("log", lo, hi) if log else (lo, hi))
     if len(parts) != 3:
         raise PvgraphError(f"--param {name}: a grid range needs the number of points, "
                            f"{'log:' if log else ''}LO:HI:N (or use --random N to sample "
                            f"LO:HI); got {body!r}")
     lo, hi = (_parse_number(v, name, unit) for v in parts[:2])
+    _check_units_not_mixed(name, parts[:2], lambda v: ("log:" if log else "") + ":".join(v)
+                           + ":" + parts[2].strip(), unit)
     try:
         n = int(parts[2])
     except ValueError:
@@ -581,10 +686,22 @@ def _sweep_cases(args, valid, prefix: dict | None = None) -> list[dict]:
     return grid({**(prefix or {}), **specs})
 
 
+#: the sweep's Python arguments in messages, as the command line spells them
+_SWEEP_SPELLING = {"resume=True": "--resume", "overwrite=True": "--overwrite", "out='": "--out '"}
+
+
+def _in_option_spelling(message: str) -> str:
+    """A sweep message with its Python arguments (``resume=True``) as command-line options
+    (``--resume``)."""
+    for python, option in _SWEEP_SPELLING.items():
+        message = re.sub(rf"(?<![\w.]){re.escape(python)}", option, message)
+    return message
+
+
 def run_sweep(args, run, cases, units, check):
     """Run a sweep with the command's backend options; ``(result, backend)``, or
     ``(None, backend)`` after Ctrl-C (what finished is kept in ``--out``)."""
-    from .analysis.sweep import SweepInterrupted, sweep
+    from .analysis.sweep import SweepError, SweepInterrupted, sweep
     if args.workers is not None and args.workers < 1:
         raise PvgraphError(f"--workers must be >= 1, got {args.workers}")
     if args.timeout is not None and not args.timeout > 0:
@@ -597,6 +714,8 @@ def run_sweep(args, run, cases, units, check):
         result = sweep(run, cases, backend=backend, workers=args.workers, client=args.scheduler,
                        progress=True, units=units, out=args.out, resume=args.resume,
                        overwrite=args.overwrite, timeout=args.timeout, check=check)
+    except SweepError as exc:
+        raise PvgraphError(_in_option_spelling(str(exc))) from None
     except SweepInterrupted as exc:
         done = exc.result
         print(f"\ninterrupted: {len(done.records)} of {done.n_cases} cases finished and kept "
@@ -605,9 +724,9 @@ def run_sweep(args, run, cases, units, check):
     return result, backend
 
 
-def _target_circuit(target: str, options: dict):
+def _target_circuit(target: str, options: dict, modules=()):
     """The circuit of a command-line target (a picklable factory for the sweep's workers)."""
-    return load_target(target, options).circuit()
+    return load_target(target, options, modules).circuit()
 
 
 def _noted_case(run, **params) -> dict:
@@ -627,8 +746,53 @@ def _noted_case(run, **params) -> dict:
     return out
 
 
-def _check_target_case(circuit, case: dict) -> None:
-    circuit.check_parameters(case)
+_PLAIN_NUMBER_HINT = re.compile(r': a plain number is in ([^;]+); give the unit with the '
+                                r'number, e\.g\. (\w+)="(\S+) ([^"]+)"')
+
+
+def _typed_params(args) -> dict:
+    """``{name: spec}`` of the ``--param`` options as typed."""
+    return {n.strip(): body.strip() for n, eq, body in
+            (spec.partition("=") for spec in getattr(args, "param", None) or []) if eq}
+
+
+def _in_cli_spelling(message: str, case: dict, typed: dict) -> str:
+    """A parameter message's hint for a plain number in the spelling of ``--param``: the
+    spec with the unit on every value (``--param 'pump.Q=5 L/min:20 L/min:4'``), or no hint
+    where the spec gave units already (the case's number is their SI value)."""
+    def replace(m):
+        si, field, number, usual = m.groups()
+        for name, value in case.items():
+            if name.rpartition(".")[2] != field or name not in typed or \
+                    not isinstance(value, float) or f"{value:g}" != number:
+                continue
+            spec = typed[name]
+            log = spec.startswith("log:")
+            parts = (spec[4:] if log else spec).split(",")
+            if len(parts) == 1:
+                parts = parts[0].split(":")
+                count = parts.pop() if len(parts) == 3 else None
+                sep = ":"
+            else:
+                count, sep = None, ","
+            if not all(_is_bare(v) for v in parts):
+                return ""      # given with units: the bound (in its unit) says it all
+            written = sep.join(f"{v.strip()} {usual}" for v in parts)
+            written = ("log:" if log else "") + written + (f":{count}" if count else "")
+            return (f": a plain number is in {si}; give the unit with the numbers, e.g. "
+                    f"--param '{name}={written}'")
+        return m.group(0)
+    return _PLAIN_NUMBER_HINT.sub(replace, message)
+
+
+def _check_target_case(circuit, case: dict, typed: dict | None = None) -> None:
+    try:
+        circuit.check_parameters(case)
+    except PvgraphError as exc:
+        text = _in_cli_spelling(str(exc), case, typed or {})
+        if text == str(exc):
+            raise
+        raise PvgraphError(text) from None
 
 
 def cmd_sweep(args) -> int:
@@ -657,12 +821,14 @@ def cmd_sweep(args) -> int:
     # compiled once per worker; each case runs with its values as runtime parameters
     from .analysis.sweep import CompiledRun
     run = functools.partial(_noted_case, CompiledRun(
-        functools.partial(_target_circuit, args.target, target.options),
+        functools.partial(_target_circuit, args.target, target.options,
+                          tuple(args.module or ())),
         outputs=dict(zip(outputs, resolved)), t_end=None if args.steady else t_end,
         rtol=args.rtol, steady=args.steady, warm=args.steady))
     units = {n: system.unit(r) for n, r in zip(outputs, resolved)}
     result, backend = run_sweep(args, run, cases, units,
-                                functools.partial(_check_target_case, circuit))
+                                functools.partial(_check_target_case, circuit,
+                                                  typed=_typed_params(args)))
     if result is None:
         return 130
     what = "steady states" if args.steady else f"t_end {t_end:g} s"
@@ -727,6 +893,15 @@ def _check_outputs(system, names) -> None:
                            f"outputs)")
 
 
+def _refuse_repeats(names, option: str) -> None:
+    """A name given twice to a repeatable option is refused, naming it."""
+    seen = set()
+    for name in names or []:
+        if name in seen:
+            raise PvgraphError(f"{option} {name} is given twice; give each once")
+        seen.add(name)
+
+
 def _frequency_response(lm, freq_hz, output: int, input: int = 0):
     """G(j 2 pi f) of a linear model at the frequencies ``freq_hz`` [Hz]."""
     import numpy as np
@@ -745,6 +920,14 @@ def cmd_linearize(args) -> int:
             raise PvgraphError("give a circuit: pvgraph linearize my_rig.py:build --input "
                                "pump.Q --output node.port.p")
         return handler[0](args)
+    _refuse_repeats(args.input, "--input")
+    _refuse_repeats(args.output, "--output")
+    if args.bode:
+        _need_matplotlib("--bode")
+    if args.json and args.bode and os.path.realpath(args.json) == os.path.realpath(args.bode):
+        raise PvgraphError(f"--json and --bode name the same file {args.json!r}; give the "
+                           f"JSON record its own name, e.g. "
+                           f"{os.path.splitext(args.json)[0] + '.json'!r}")
     target = _target(args)
     circuit = target.circuit()
     if not args.input:
@@ -843,6 +1026,20 @@ def _per(out_unit: str, in_unit: str) -> str:
 
 
 # --------------------------------------------------------------------------------------------
+def time_arg(text: str) -> float:
+    """argparse type of a time option: seconds, as a number or with a unit ("2 s", "500 ms");
+    its range is checked where it is used."""
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    try:
+        return float(to_unit(text.strip(), "s", "time"))
+    except ParameterError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a time: give seconds, e.g. 2 or "
+                                         f"'500 ms'") from None
+
+
 def _tolerance(text: str) -> float:
     """argparse type of --rtol: a number in (0, 1)."""
     try:
@@ -867,6 +1064,16 @@ def _csv_path(text: str) -> str:
         raise argparse.ArgumentTypeError(
             f"{text!r}: --csv writes comma-separated text; name the file .csv (or .txt)")
     return path
+
+
+def json_path(text: str) -> str:
+    """argparse type of --json: a writable file (an existing folder is refused with a .json
+    name in it as the hint), checked before anything runs."""
+    if text and os.path.isdir(os.path.abspath(text)):
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is a directory; give a file name, e.g. "
+            f"{os.path.join(text, 'result.json')!r}")
+    return _output_path(text)
 
 
 def _figure_path(text: str) -> str:
@@ -919,6 +1126,9 @@ def _add_target(p, help_text="circuit: FILE.py:FUNCTION, MODULE:FUNCTION, a mode
     p.add_argument("target", nargs="?" if optional else None, help=help_text)
     p.add_argument("--option", "-o", action="append", metavar="KEY=VALUE",
                    help="keyword argument for the circuit's builder (repeatable; JSON values)")
+    p.add_argument("--module", action="append", metavar="MODULE",
+                   help="a module whose component classes a model file target may name "
+                        "(type = \"MODULE:Class\"; repeatable)")
 
 
 def _add_sweep_backend(w) -> None:
@@ -926,7 +1136,8 @@ def _add_sweep_backend(w) -> None:
                    help="parameter to vary (component.field, e.g. orifice.A). SPEC: LO:HI:N "
                         "(N points), log:LO:HI:N (log-spaced), V1,V2,... or a fixed V; with "
                         "--random: LO:HI, log:LO:HI or a fixed V. SI numbers, or quantities "
-                        "with units (\"2 mm^2,3 mm^2\"). Repeatable: the grid is the product")
+                        "with the unit on every value (\"2 mm^2:4 mm^2:3\"). Repeatable: the "
+                        "grid is the product")
     w.add_argument("--random", type=int, metavar="N",
                    help="draw N random cases from the LO:HI ranges instead of a grid")
     w.add_argument("--seed", type=int, default=None, help="random seed (with --random)")
@@ -972,7 +1183,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = parsers["simulate"] = sub.add_parser(
         "simulate", help="simulate a circuit and print final values")
     _add_target(s)
-    s.add_argument("--t-end", type=float, default=None,
+    s.add_argument("--t-end", type=time_arg, default=None,
                    help=f"end time [s] (default: the circuit's, else {DEFAULT_T_END:g})")
     s.add_argument("--solver", default="pvgraph", choices=["pvgraph", "ida"],
                    help="the built-in IDA-style solver (default) or SUNDIALS IDA through "
@@ -998,7 +1209,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_target(g)
     g.add_argument("--out", default="circuit.png", type=_output_path, help="output file (default: %(default)s)")
     g.add_argument("--format", choices=["png", "svg", "dot"],
-                   help="default: from the extension of --out")
+                   help="default: from the extension of --out (which must then agree)")
     g.set_defaults(func=cmd_graph)
 
     e = parsers["export"] = sub.add_parser(
@@ -1021,7 +1232,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "exit 1 when a case failed, timed out or gave a non-finite output.")
     _add_target(w, optional=True)
     w.add_argument("--var", action="append", help="output variable (repeatable)")
-    w.add_argument("--t-end", type=float, default=None, help="simulated time per case [s]")
+    w.add_argument("--t-end", type=time_arg, default=None, help="simulated time per case [s]")
     w.add_argument("--rtol", type=_tolerance, default=1e-6,
                    help="relative tolerance (default: %(default)s)")
     w.add_argument("--steady", action="store_true",
@@ -1046,7 +1257,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="output variable (repeatable)")
     lz.add_argument("--poles", type=int, default=6, help="dominant poles to print "
                                                          "(default: %(default)s)")
-    lz.add_argument("--json", type=_output_path, help="write operating point, poles and DC gains to this file")
+    lz.add_argument("--json", type=json_path, help="write operating point, poles and DC gains to this file")
     lz.add_argument("--bode", metavar="PNG", type=_figure_path, help="draw the Bode plot of every output to this "
                                                   "PNG file")
     lz.add_argument("--si", action="store_true", help="print SI units")
@@ -1079,11 +1290,25 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _ours(filename) -> bool:
+    """Whether a warning was issued from pvgraph's own code (its packages, the component
+    library, the registered applications shipped with it): its source line means nothing to
+    the command's user."""
+    if not filename:
+        return False
+    where = os.path.realpath(filename)
+    roots = [os.path.dirname(os.path.realpath(__file__))]
+    for name in ("pvgraph.components", "pvgraph.circuits"):
+        module = sys.modules.get(name)
+        roots += [os.path.realpath(p) for p in getattr(module, "__path__", None) or []]
+    return any(where.startswith(root + os.sep) for root in roots)
+
+
 def _show_warning(command, message, category, filename, lineno, file=None, line=None):
     """pvgraph's own warnings as one plain line; other libraries' as Python prints them."""
     from .errors import PlausibilityWarning
     from .system import RecompileWarning
-    if issubclass(category, (PlausibilityWarning, RecompileWarning)):
+    if issubclass(category, (PlausibilityWarning, RecompileWarning)) or _ours(filename):
         print(f"pvgraph {command}: warning: {message}", file=file or sys.stderr)
     else:
         print(warnings.formatwarning(message, category, filename, lineno, line),
@@ -1099,12 +1324,19 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     args._argv = list(sys.argv[1:] if argv is None else argv)   # the options as typed
     before = os.environ.get("PVGRAPH_BACKEND")
-    if args.eval is not None:   # in the environment, so worker processes see it too
-        os.environ["PVGRAPH_BACKEND"] = args.eval
+    backend = args.eval
+    if backend is None and before is not None:      # as compile() reads it: checked here
+        backend = before.strip().lower()
+        if backend not in ("", "python", "c", "auto"):
+            print(f"pvgraph {args.command}: error: PVGRAPH_BACKEND={before!r}: choose "
+                  f"python, c or auto (or unset it; --eval overrides it)", file=sys.stderr)
+            return 2
+    if backend is not None and backend != before:   # in the environment, so worker
+        os.environ["PVGRAPH_BACKEND"] = backend     # processes see it too
     try:
         return _run(args, argv)
     finally:
-        if args.eval is not None and argv is not None:  # called in-process: as it was
+        if backend != before and argv is not None:  # called in-process: as it was
             if before is None:
                 os.environ.pop("PVGRAPH_BACKEND", None)
             else:
@@ -1136,4 +1368,7 @@ def _run(args, argv) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # run as pvgraph.cli, not __main__: the functions a sweep sends to its workers and names
+    # in its record are then the same as under the pvgraph command
+    from pvgraph.cli import main as _main
+    sys.exit(_main())

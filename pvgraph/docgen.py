@@ -5,7 +5,8 @@ unit, description), its parameters read from the pydantic model (name, descripti
 and provenance, default, bounds), its internal variables and its discrete modes. Nothing is
 copied by hand, so the reference cannot drift from the code::
 
-    python -m pvgraph.docgen            # writes docs/components.md
+    python -m pvgraph.docgen            # writes docs/components.md (in a source checkout)
+    python -m pvgraph.docgen ref.md     # writes ref.md
 
 ``tests/components/test_docgen.py`` fails when ``docs/components.md`` differs from what this
 module generates.
@@ -179,10 +180,35 @@ def library_modules(names: Iterable[str] = LIBRARY_MODULES) -> list[ModuleType]:
     return modules
 
 
+def _in_checkout(output: Path = DEFAULT_OUTPUT) -> bool:
+    """Whether the default output lies in a source checkout (beside its pyproject.toml), not
+    in an installed package's folder."""
+    root = output.parent.parent
+    return (root / "pyproject.toml").is_file() and output.parent.is_dir()
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Write the component reference (default ``docs/components.md``); return 0."""
-    argv = sys.argv[1:] if argv is None else argv
-    path = Path(argv[0]) if argv else DEFAULT_OUTPUT
+    """Write the component reference (in a source checkout by default its
+    ``docs/components.md``, else the file given); return 0, or 2 for bad arguments."""
+    import argparse
+    parser = argparse.ArgumentParser(
+        prog="python -m pvgraph.docgen",
+        description="Write the component reference (Markdown) generated from the component "
+                    "classes.")
+    parser.add_argument("output", nargs="?", type=Path, default=None,
+                        help="the Markdown file to write (default in a source checkout: its "
+                             "docs/components.md; elsewhere give one)")
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    path = args.output
+    if path is None:
+        if not _in_checkout():
+            parser.error(f"pvgraph is installed, not a source checkout ({DEFAULT_OUTPUT.parent} "
+                         f"is no docs folder of one): give the file to write, e.g. "
+                         f"python -m pvgraph.docgen components.md")
+        path = DEFAULT_OUTPUT
+    if path.is_dir():
+        parser.error(f"{str(path)!r} is a directory; give a file name, e.g. "
+                     f"{str(path / 'components.md')!r}")
     path.parent.mkdir(parents=True, exist_ok=True)
     text = component_reference(library_modules())
     path.write_text(text, encoding="utf-8")

@@ -241,8 +241,17 @@ def export_fmu(circuit, path, *, inputs: Sequence[str] = (), outputs: Sequence[s
             circuit._parameter_owner(name)          # raises with close matches
         if not isinstance(known[name][0], (int, float)) or isinstance(known[name][0], bool):
             raise FmiError(f"{name} is not a real-valued parameter ({known[name][0]!r})")
-    if len(set(inputs) | set(parameters)) != len(inputs) + len(parameters):
-        raise FmiError("a name is given twice among the inputs and parameters")
+    # an FMU names each variable once (FMI 2.0: unique ScalarVariable names)
+    for group, names in (("inputs and parameters", list(inputs) + list(parameters)),
+                         ("outputs", list(outputs))):
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise FmiError(f"{twice[0]!r} is given twice among the {group}; an FMU names each "
+                           f"variable once")
+    both = sorted(set(outputs) & (set(inputs) | set(parameters)))
+    if both:
+        raise FmiError(f"{both[0]!r} is given as an output and as an input or parameter; an "
+                       f"FMU names each variable once")
     system = circuit.compile()
     from .cli import check_names
     check_names(system, outputs, what="output")

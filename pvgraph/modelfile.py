@@ -146,20 +146,68 @@ def _type_name(cls: type, known: dict[str, type]) -> str:
             f"{cls.__qualname__} is defined in {where}, not in a module a model file can name "
             f"(package.module:Class): a file written now could not be loaded again. Move "
             f"{cls.__qualname__} into an importable module and load the file with "
-            f"load(path, modules=['that.module']).")
+            f"load(path, modules=['that.module']) (--module that.module on the command "
+            f"line).")
     full = f"{module}:{cls.__qualname__}"
+    if known.get(full) is not cls:
+        full = _library_alias(cls, known) or full
     short = [k for k, v in known.items() if k.endswith(":" + cls.__qualname__)]
     if short == [full]:
         return cls.__qualname__
     return full
 
 
+#: the library's top-level name in a source checkout, where ``components/`` is importable both
+#: as ``components`` and as ``pvgraph.components`` (pyproject's package-dir)
+CHECKOUT_PREFIX, LIBRARY_PREFIX = "components.", "pvgraph.components."
+
+
+def _module_file(module: str) -> str | None:
+    path = getattr(sys.modules.get(module), "__file__", None)
+    return os.path.realpath(path) if path else None
+
+
+def _library_alias(cls: type, known: dict[str, type]) -> str | None:
+    """The library's ``"module:Class"`` of ``cls`` when ``cls`` is a library class imported
+    under another module name (the same file: ``components.hydraulic.sources`` of a source
+    checkout), else None."""
+    where = _module_file(cls.__module__)
+    if where is None:
+        return None
+    for key, other in known.items():
+        if other.__qualname__ == cls.__qualname__ and _module_file(other.__module__) == where:
+            return key
+    return None
+
+
+def foreign_modules(circuit: Circuit) -> list[str]:
+    """The modules outside the library whose component classes ``circuit`` uses: a model
+    file of it loads with ``load(path, modules=[...])`` naming them."""
+    known = _library_classes()
+    classes = set(known.values())
+    found = set()
+
+    def walk(node):
+        for child in node.components.values():
+            if isinstance(child, Circuit):
+                walk(child)
+            elif type(child) not in classes and _library_alias(type(child), known) is None:
+                found.add(type(child).__module__)
+    walk(circuit)
+    return sorted(found)
+
+
 def _resolve_type(name: str, known: dict[str, type]) -> type:
     if ":" in name:
         if name in known:
             return known[name]
+        library = LIBRARY_PREFIX + name[len(CHECKOUT_PREFIX):]
+        if name.startswith(CHECKOUT_PREFIX) and library in known:
+            return known[library]       # written from a source checkout's own import
+        module = name.partition(":")[0]
         raise KeyError(f"component type {name!r} is not in the library or in the allowed "
-                       f"modules; pass its module to load(..., modules=[...])")
+                       f"modules; allow its module: --module {module} on the command line, "
+                       f"load(..., modules=[{module!r}]) in Python")
     matches = [v for k, v in known.items() if k.endswith(":" + name)]
     if len(matches) == 1:
         return matches[0]
@@ -287,6 +335,9 @@ def _toml_node(lines: list, prefix: str, node: dict) -> None:
 
 def dumps(circuit: Circuit, fmt: str = "toml") -> str:
     """The model file of ``circuit`` as text, ``fmt`` "toml" or "json"."""
+    if not circuit.components:
+        raise ModelFileError(f"circuit {circuit.name!r} has no components: a model file of it "
+                             f"could not be loaded")
     data = to_dict(circuit)
     if fmt == "json":
         return json.dumps(data, indent=1, allow_nan=False) + "\n"
@@ -343,6 +394,18 @@ class _Loader:
         self.known = _library_classes(modules)
         self.errors: list[tuple[int, str]] = []     # (line or 0, message), in file order
 
+
+    @staticmethod
+    def _at_fault(cls, child) -> str:
+        """``"start"`` when the parameters alone make the component (its start values are at
+        fault), else ``"params"``: the key whose line an error names."""
+        if not child.start:
+            return "params"
+        try:
+            cls(**child.params)
+        except (ParameterError, CircuitError):
+            return "params"
+        return "start"
     def fail(self, loc, message, find=None) -> None:
         line = _line_of(self.text, find or loc)
         where = f"{self.source}" + (f", line {line}" if line else "")
@@ -394,7 +457,7 @@ class _Loader:
                 try:
                     comp = cls(**child.params, start=dict(child.start) or None)
                 except ParameterError as exc:
-                    self.fail(here + ("params",), str(exc))
+                    self.fail(here + (self._at_fault(cls, child),), str(exc))
                 except CircuitError as exc:
                     self.fail(here + ("start",), str(exc))
             if comp is None or not self.add(c, cname, comp, here):
@@ -456,6 +519,10 @@ def from_dict(data: dict, *, modules: Iterable[str] = (), text: str = "",
                    f"fluid, the file format, name, components, connections, expose and fluid")
         raise ModelFileError(f"{where} ({'.'.join(map(str, loc)) or 'top level'}): "
                              f"{msg}") from None
+    if not model.components:
+        raise ModelFileError(f"{source} (top level): the model file holds no components; a "
+                             f"circuit is written as [components.NAME] tables (type = "
+                             f"\"Orifice\", params = {{ ... }}) and connections")
     loader = _Loader(text, source, modules)
     root = CircuitEntry(type="Circuit", components=model.components,
                         connections=model.connections, expose=model.expose, fluid=model.fluid)

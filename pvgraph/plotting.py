@@ -1,32 +1,56 @@
 """Plots with matplotlib: time series by name, Bode and step responses, circuit drawings.
 
-All functions write a PNG (or SVG, by the file's extension) and return its path; they use the
-non-interactive Agg backend so they work on machines without a screen.
+All functions write a PNG (or SVG, by the file's extension) to the path given and return it;
+they use the non-interactive Agg backend so they work on machines without a screen.
 """
 
 from __future__ import annotations
 
 import os
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from .errors import PvgraphError
+from .units import display
 
-from .units import display  # noqa: E402
+
+class _NoMatplotlib:
+    """``plt`` where matplotlib is not installed: a figure asked for says so (a DOT drawing
+    needs no matplotlib)."""
+
+    def __getattr__(self, name):
+        raise PvgraphError('this figure is drawn with matplotlib, which is not installed: '
+                           'pip install matplotlib')
+
+
+try:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+except ModuleNotFoundError as exc:
+    if exc.name != "matplotlib":
+        raise
+    plt = _NoMatplotlib()
 
 __all__ = ["plot_solution", "draw_circuit", "plot_bode", "plot_step_response",
            "plot_opening_areas"]
 
 
 
-def _save(fig, path):
+#: file extensions naming a figure or drawing format, besides the one asked for
+_FORMAT_SUFFIXES = ("png", "svg", "pdf", "dot", "gv", "jpg", "jpeg", "eps", "ps", "tif", "tiff")
+
+
+def _save(fig, path, fmt=None):
+    """Write ``fig`` to ``path`` itself, in ``fmt`` (default: the extension, else PNG)."""
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    fmt = fmt or os.path.splitext(os.fspath(path))[1].lstrip(".").lower() or "png"
+    try:
+        fig.savefig(path, dpi=110, format=fmt)
+    finally:
+        plt.close(fig)
     return path
 
 
@@ -157,16 +181,23 @@ def draw_circuit(circuit, path, *, fmt=None):
     """
     path = os.fspath(path)
     if os.path.isdir(path):
-        from .errors import PvgraphError
         raise PvgraphError(f"draw_circuit: {path!r} is a folder; give the file to write "
                            f"(e.g. {os.path.join(path, circuit.name + '.png')!r})")
-    fmt = fmt or (os.path.splitext(path)[1].lstrip(".").lower() or "png")
+    suffix = os.path.splitext(path)[1].lstrip(".").lower()
+    if fmt is not None and suffix in _FORMAT_SUFFIXES and suffix != fmt and \
+            {suffix, fmt} != {"dot", "gv"}:
+        raise ValueError(f"draw_circuit: fmt={fmt!r} but the file {path!r} is named .{suffix}; "
+                         f"name it .{fmt} or leave fmt out (the format then comes from the "
+                         f"extension)")
+    fmt = fmt or ({"gv": "dot"}.get(suffix, suffix) or "png")
     nodes, edges, groups = _schematic(circuit)
     if fmt == "dot":
         os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
         return _write_dot(circuit, nodes, edges, groups, path)
     if fmt not in ("png", "svg"):
         raise ValueError(f"draw_circuit: format {fmt!r}; choose png, svg or dot")
+    if isinstance(plt, _NoMatplotlib):
+        plt.subplots        # noqa: B018  (raises: matplotlib is not installed)
     import matplotlib.patches as mpatches
     from matplotlib.lines import Line2D
 
@@ -216,7 +247,7 @@ def draw_circuit(circuit, path, *, fmt=None):
     ax.set_xlim(-0.8, width)
     ax.set_ylim(-height - 0.2, 0.6)
     ax.axis("off")
-    return _save(fig, path)
+    return _save(fig, path, fmt)
 
 
 def _write_dot(circuit, nodes, edges, groups, path):

@@ -620,8 +620,8 @@ def test_validate_roles_per_configuration_and_model_checks(tmp_path, capsys):
 
 @pytest.mark.parametrize("args, message", [
     (["--fold", "U=4.6"], "--fold ['U=4.6']: no such fold; did you mean 'U = 4.6 V'"),
-    (["--fold", "U = 4.6 V"], "--fold only apply with --cross-validate"),
-    (["--meter-out", "ratio"], "--meter-out only apply with --cross-validate"),
+    (["--fold", "U = 4.6 V"], "--fold only applies with --cross-validate"),
+    (["--meter-out", "ratio"], "--meter-out only applies with --cross-validate"),
 ])
 def test_validate_fold_options_are_checked_before_any_run(args, message, tmp_path, capsys):
     import time

@@ -563,7 +563,10 @@ def _run_process(run, todo, cases, workers, report, timeout) -> None:
         report(_run_isolated(run, i, cases[i], timeout))
 
 
-def _run_dask(run, todo, cases, workers, client, report, timeout=None) -> None:
+def _start_dask(workers, client):
+    """``(distributed, client, owned)``: the Dask client a sweep runs on, started (a local
+    cluster) or connected (a scheduler address) here, before the sweep's record is opened;
+    ``owned`` are what the sweep closes at its end."""
     try:
         import distributed
     except ImportError:
@@ -587,6 +590,11 @@ def _run_dask(run, todo, cases, workers, client, report, timeout=None) -> None:
     elif not isinstance(client, distributed.Client):
         raise SweepError(f"client must be a distributed.Client or a scheduler address string, "
                          f"got {type(client).__name__}")
+    return distributed, client, owned
+
+
+def _run_dask(run, todo, cases, started, report, timeout=None) -> None:
+    distributed, client, owned = started
     futures = []
     try:
         if timeout is not None:
@@ -757,8 +765,8 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
     units : dict, optional
         Unit of each output (``{"q": "m^3/s"}``), kept as metadata in the result and its files.
     resume : bool
-        Keep the successful cases recorded in ``out/cases.jsonl`` (they must be the same cases)
-        and run only the others.
+        Keep the successful cases recorded in ``out/cases.jsonl`` (they must be the same cases,
+        recorded by the same run) and run only the others.
     overwrite : bool
         Replace the record of an earlier sweep in ``out`` (without ``resume`` or
         ``overwrite`` a folder holding one is refused: nothing recorded is lost unasked).
@@ -781,7 +789,8 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
     SweepError
         ``run`` is not callable or cannot be pickled, ``cases`` is empty or its cases set
         different parameters, ``check`` refused cases, the backend, the worker count or the
-        timeout is invalid, or ``resume`` finds a record of other cases.
+        timeout is invalid, or ``resume`` finds a record of other cases or of another run
+        (its function, outputs, t_end or tolerance differ: the record is left as it is).
     SweepInterrupted
         Ctrl-C; the finished cases are in its ``result`` and in ``out``.
     """
@@ -825,8 +834,8 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
             os.path.exists(os.path.join(os.fspath(out), LOG_NAME)):
         raise SweepError(f"{os.path.join(os.fspath(out), LOG_NAME)} holds the record of an "
                          f"earlier sweep ({_recorded(os.path.join(os.fspath(out), LOG_NAME))}): "
-                         f"resume it (resume=True, --resume), replace it (overwrite=True, "
-                         f"--overwrite) or give another folder")
+                         f"resume it (resume=True), replace it (overwrite=True) or give "
+                         f"another folder")
     if units is not None:
         if not isinstance(units, Mapping):
             raise SweepError(f"units must be a mapping {{output name: unit}}, e.g. "
@@ -845,6 +854,7 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
                              f"outputs or give it another label (outputs={{'{clash[0]} out': "
                              f"'{run.outputs[clash[0]]}'}})")
         run.validate(cases[0])      # names wrong for every case: told before any case runs
+        cases = run.in_si(cases)    # records are SI, as the files say
     records: dict[int, CaseResult] = {}
     log_path = None if out is None else os.path.join(os.fspath(out), LOG_NAME)
     identity = run_identity(run)
@@ -852,13 +862,14 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
         records = {i: r for i, r in _read_log(log_path, cases).items() if r.ok}
         before = _recorded_identity(log_path)
         if records and before is not None and before != identity:
-            from ..errors import PlausibilityWarning
-            _warnings.warn(PlausibilityWarning(
-                f"resume: {log_path} was recorded by another run ({before}); this one is "
-                f"{identity}: its {len(records)} finished case"
-                f"{'s' if len(records) != 1 else ''} stay as recorded and the rest come from "
-                f"this run. Give overwrite=True (--overwrite) to run every case again."),
-                stacklevel=2)
+            # the kept cases would be shown as this run's (its t_end, outputs ...): refused
+            # like a record of other cases, the record left as it is
+            raise SweepError(
+                f"resume: {log_path} was recorded by another run "
+                f"({_identity_difference(before, identity)}); its {len(records)} finished "
+                f"case{'s' if len(records) != 1 else ''} cannot be counted as this run's. "
+                f"Use the same arguments as the recorded run, overwrite=True to run every "
+                f"case again, or another output folder")
     todo = [i for i in range(len(cases)) if i not in records]
     if check is not None:
         _check_values(check, cases, todo)
@@ -875,8 +886,16 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
                              f"({exc.strerror or exc})") from None
         if not os.access(os.fspath(out), os.W_OK | os.X_OK):
             raise SweepError(f"out={os.fspath(out)!r}: the folder is not writable")
-    log = _open_log(log_path, cases, param_names, units, records, identity) \
-        if log_path else None
+    # the backend is started before the record is opened: a backend that cannot start
+    # (dask missing, a scheduler out of reach) leaves no record that blocks the retry
+    started = _start_dask(workers, client) if backend == "dask" and todo else None
+    try:
+        log = _open_log(log_path, cases, param_names, units, records, identity) \
+            if log_path else None
+    except BaseException:
+        for obj in (started or (None, None, []))[2]:
+            obj.close()
+        raise
     done = len(records)
 
     def report(res: CaseResult) -> None:
@@ -910,7 +929,7 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
         elif backend == "process":
             _run_process(run, todo, cases, workers, report, timeout)
         else:
-            _run_dask(run, todo, cases, workers, client, report, timeout)
+            _run_dask(run, todo, cases, started, report, timeout)
     except KeyboardInterrupt:
         if log is not None:
             log.close()
@@ -1005,6 +1024,22 @@ def _identity_of(value) -> str:
     if callable(getattr(value, "sweep_identity", None)) or callable(value):
         return run_identity(value)
     return re.sub(r" at 0x[0-9a-fA-F]+", "", repr(value))
+
+
+def _identity_difference(before: str, now: str) -> str:
+    """``"recorded t_end 10.0, now t_end 0.1"``: the part of two run identities that
+    differs, widened to whole ", "-separated items."""
+    start = len(os.path.commonprefix([before, now]))
+    end = len(os.path.commonprefix([before[::-1], now[::-1]]))
+    end = min(end, len(before) - start, len(now) - start)
+    cut = max(before.rfind(", ", 0, start), before.rfind("(", 0, start))
+    start = cut + (2 if before.startswith(", ", cut) else 1) if cut >= 0 else 0
+
+    def stop(text):
+        k = len(text) - end
+        found = [i for i in (text.find(", ", k), text.find(")", k)) if i >= 0]
+        return min(found) if found else len(text)
+    return f"recorded: {before[start:stop(before)]}; now: {now[start:stop(now)]}"
 
 
 def _recorded_identity(path):
@@ -1125,10 +1160,18 @@ class CompiledRun:
                              "build= (case names are the builder's arguments), not both")
         if build is not None and not callable(build):
             raise SweepError(f"build must be callable, got {type(build).__name__}")
-        if steady == (t_end is not None):
+        if steady and t_end is not None:
+            raise SweepError("CompiledRun takes t_end= (simulate) or steady=True (steady "
+                             "states), not both")
+        if not steady and t_end is None:
             raise SweepError("CompiledRun needs either t_end= (simulate) or steady=True")
         if t_end is not None and not (isinstance(t_end, numbers.Real) and t_end > 0):
             raise SweepError(f"t_end must be a positive time [s], got {t_end!r}")
+        for what, value in (("rtol", rtol), ("tol", tol)):
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or \
+                    not (math.isfinite(value) and 0 < value < 1):
+                raise SweepError(f"CompiledRun: {what} must be a number between 0 and 1, e.g. "
+                                 f"1e-6, got {value!r}")
         if isinstance(outputs, Mapping):
             outputs = dict(outputs)
         else:
@@ -1151,6 +1194,8 @@ class CompiledRun:
         import hashlib
         source = self.circuit if self.circuit is not None else self.build
         what = getattr(source, "__qualname__", None)
+        if what is None and isinstance(source, functools.partial):
+            what = run_identity(source)     # a factory with its arguments (a CLI target)
         if what is None:
             try:
                 from ..modelfile import dumps
@@ -1220,6 +1265,32 @@ class CompiledRun:
             except (KeyError, PvgraphError) as exc:
                 text = exc.args[0] if exc.args else str(exc)
                 raise SweepError(f"CompiledRun: output {label!r}: {text}") from None
+
+    def in_si(self, cases: list[dict]) -> list[dict]:
+        """``cases`` with each quantity (``"1 mm^2"``) of a circuit parameter declaring a unit
+        as its SI number, so that the records hold one kind of value per column; other values
+        (numbers, choices, builder arguments) as given, and a quantity that does not convert
+        as given (its case then fails with the parameter's own message)."""
+        from ..units import declared_unit, is_quantity, to_unit
+        if self.circuit is None or not any(isinstance(v, str) and is_quantity(v)
+                                           for c in cases for v in c.values()):
+            return cases
+        valid = self._circuit().parameters()
+        out = []
+        for case in cases:
+            case = dict(case)
+            for name, value in case.items():
+                if not (isinstance(value, str) and name in valid) or \
+                        isinstance(valid[name][0], str):
+                    continue
+                unit = declared_unit(valid[name][1])
+                if unit:
+                    try:
+                        case[name] = float(to_unit(value, unit, name))
+                    except PvgraphError:
+                        pass
+            out.append(case)
+        return out
 
     def compilations(self) -> int:
         """Compilations this object (or its key) caused in this process."""
@@ -1364,6 +1435,10 @@ def _range_spec(name, spec):
     else:
         raise SweepError(f"random_sample: {name!r} must be (lo, hi), ('log', lo, hi) or a "
                          f"constant, got {spec!r}")
+    if any(isinstance(v, str) for v in (lo, hi)):
+        raise SweepError(f"random_sample: the range of {name!r} takes numbers (SI), got "
+                         f"{spec!r}; convert quantities first, e.g. "
+                         f"pvgraph.units.to_si('2 mm^2')")
     if not all(isinstance(v, numbers.Real) and math.isfinite(v) for v in (lo, hi)) or \
             not lo < hi:
         raise SweepError(f"random_sample: the range of {name!r} needs finite lo < hi, got "

@@ -273,3 +273,34 @@ def test_every_mistake_of_a_file_is_told_at_once_by_line():
     with pytest.raises(ModelFileError, match=r"^demo.toml, line 12 \(components.orifice.type\)"):
         loads(text.replace("10 L/mn", "10 L/min").replace('"tnk.port"', '"tank.port"'),
               source="demo.toml")
+
+
+@pytest.mark.parametrize("start, message", [
+    ('{ "port.p" = "5 barr" }', r"m.toml, line 13 \(components.node.start\): VolumeNode start "
+                                r"value 'port.p' = '5 barr': unknown unit 'barr'"),
+    ('{ "port.p" = "5 L" }', r"m.toml, line 13 \(components.node.start\): .* is a volume"),
+])
+def test_a_bad_start_value_is_told_at_its_own_line(start, message, tmp_path):
+    text = TEXT.replace('start = { "port.p" = 1e5 }', f"start = {start}")
+    lines = text.splitlines()
+    assert lines[12].startswith("start") and lines[11].startswith("params")
+    path = tmp_path / "m.toml"
+    path.write_text(text)
+    with pytest.raises(ModelFileError, match=message):
+        load(path)
+
+
+def test_an_empty_model_file_is_named(tmp_path):
+    path = tmp_path / "empty.toml"
+    path.write_text('format = 1\nname = "nothing"\n')
+    with pytest.raises(ModelFileError, match=r"empty.toml \(top level\): the model file holds "
+                                             r"no components"):
+        load(path)
+
+
+def test_a_circuit_without_components_is_not_saved(tmp_path):
+    path = tmp_path / "e.toml"
+    with pytest.raises(ModelFileError, match=r"circuit 'empty' has no components: a model file "
+                                             r"of it could not be loaded"):
+        save(Circuit("empty"), path)
+    assert not path.exists()

@@ -243,18 +243,19 @@ def cube(x):
     return {"y": x ** 3}
 
 
-def test_resume_with_another_run_says_the_record_mixes_two(tmp_path):
-    """The record names the run that made it; resuming with another function warns that the
-    finished cases stay as the first run made them (they were mixed into one table
-    silently), and overwrite=True runs them all again with the new one."""
-    from pvgraph.errors import PlausibilityWarning
+def test_resume_with_another_run_is_refused_and_the_record_kept(tmp_path):
+    """The record names the run that made it; resuming with another function is refused
+    (its finished cases would be counted as the new run's) and the record is left as it
+    was; overwrite=True runs them all again with the new one."""
     cases = grid({"x": [1.0, 2.0]})
     sweep(square, cases, backend="serial", out=tmp_path)
-    head = json.loads((tmp_path / "cases.jsonl").read_text().splitlines()[0])
+    before = (tmp_path / "cases.jsonl").read_text()
+    head = json.loads(before.splitlines()[0])
     assert head["run"].endswith("test_sweep_resilience.square")
-    with pytest.warns(PlausibilityWarning, match=r"recorded by another run \(.*square\); this "
-                                                 r"one is .*cube: its 2 finished cases stay"):
+    with pytest.raises(SweepError, match=r"recorded by another run \(recorded: .*square; now: "
+                                         r".*cube\); its 2 finished cases cannot be counted"):
         sweep(cube, cases, backend="serial", out=tmp_path, resume=True)
+    assert (tmp_path / "cases.jsonl").read_text() == before
     again = sweep(cube, cases, backend="serial", out=tmp_path, overwrite=True)
     assert [r.outputs["y"] for r in again] == [1.0, 8.0]
 

@@ -3,6 +3,7 @@ the closed-form orifice pressure, and a structural parameter compiled again (onc
 
 import functools
 import math
+import re
 import warnings
 
 import numpy as np
@@ -232,3 +233,38 @@ def test_structural_fields_and_a_first_case_refused_for_its_value_still_run():
     res = sweep(by_build, [{"A": -1.0}, {"A": 2e-6}], backend="serial")
     assert [r.status for r in res] == ["failed", "ok"]
     assert res[1].outputs["p"] == pytest.approx(analytic({}, Q=1e-4, A=2e-6), rel=1e-9)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"t_end": 0.5, "rtol": -1}, "CompiledRun: rtol must be a number between 0 and 1"),
+    ({"t_end": 0.5, "rtol": float("nan")}, "CompiledRun: rtol must be a number between 0"),
+    ({"steady": True, "tol": 0.0}, "CompiledRun: tol must be a number between 0 and 1"),
+    ({"t_end": 1.0, "steady": True}, "takes t_end= (simulate) or steady=True (steady "
+                                     "states), not both"),
+    ({}, "needs either t_end= (simulate) or steady=True"),
+])
+def test_compiled_run_checks_its_settings_when_made(kwargs, message):
+    with pytest.raises(SweepError, match=re.escape(message)):
+        CompiledRun(build=orifice_bench, outputs={"p": "node.port.p"}, **kwargs)
+
+
+def test_random_sample_of_quantities_says_to_convert_them():
+    from pvgraph.analysis import random_sample
+    with pytest.raises(SweepError, match=r"random_sample: the range of 'orifice.A' takes "
+                                         r"numbers \(SI\), got \('1 mm\^2', '2 mm\^2'\); "
+                                         r"convert quantities first"):
+        random_sample({"orifice.A": ("1 mm^2", "2 mm^2")}, 3)
+
+
+def test_quantities_in_the_cases_are_recorded_in_si(tmp_path):
+    """A case value written with a unit runs converted and is recorded as its SI number, so
+    that a column of sweep.csv holds one kind of value."""
+    run = CompiledRun(orifice_bench, outputs={"p": "node.port.p"}, steady=True, tol=1e-12)
+    result = sweep(run, grid({"orifice.A": ["1 mm^2", 2e-6]}), backend="serial", out=tmp_path)
+    assert list(result.column("orifice.A")) == [pytest.approx(1e-6), 2e-6]
+    assert all(isinstance(r.params["orifice.A"], float) for r in result)
+    p = result.column("p")
+    assert p[0] == pytest.approx(RHO / 2 * (1e-4 / (CD * 1e-6)) ** 2, rel=1e-6)
+    rows = (tmp_path / "sweep.csv").read_text().splitlines()
+    assert [float(line.split(",")[3]) for line in rows[1:]] == [pytest.approx(1e-6), 2e-6]
+    assert "mm^2" not in (tmp_path / "cases.jsonl").read_text()
