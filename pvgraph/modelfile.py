@@ -469,6 +469,12 @@ class _Loader:
                 self.fail(loc + ("fluid",), f"{', '.join(map(repr, unknown))}: not a fluid "
                                             f"property; a fluid has "
                                             f"{', '.join(sorted(_FLUID_NAMES))}")
+            else:       # each property checked as Circuit.use_fluid checks it
+                from .circuit import _check_fluid_values
+                try:
+                    _check_fluid_values(c, dict(entry.fluid))
+                except ParameterError as exc:
+                    self.fail(loc + ("fluid",), str(exc))
 
         def names_missing(refs):
             return any(isinstance(r, str) and r.split(".")[0] in missing for r in refs)

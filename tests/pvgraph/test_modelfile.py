@@ -304,3 +304,19 @@ def test_a_circuit_without_components_is_not_saved(tmp_path):
                                              r"of it could not be loaded"):
         save(Circuit("empty"), path)
     assert not path.exists()
+
+
+def test_a_files_fluid_is_checked_though_every_part_gives_its_own():
+    """fluid = { rho = "1000 bar" } in a file whose parts all give their own rho was kept,
+    run and saved again; it is refused at its line, as Circuit.use_fluid refuses it."""
+    text = "\n".join([
+        'format = 1', 'name = "demo"', 'fluid = { rho = "1000 bar" }',
+        'connections = [["pump.port", "node.port", "o.a"], ["o.b", "tank.port"]]',
+        '[components.pump]', 'type = "FlowSource"', 'params = { Q = "10 L/min" }',
+        '[components.node]', 'type = "VolumeNode"', 'params = { V = "0.5 L", beta = "7000 bar" }',
+        '[components.o]', 'type = "Orifice"', 'params = { A = "2 mm^2", rho = 870, nu = 3.2e-5 }',
+        '[components.tank]', 'type = "Tank"'])
+    with pytest.raises(ModelFileError, match=r"(?s)^demo.toml, line 3 \(fluid\): .*rho = .1000 bar. "
+                                             r"is a pressure, but rho is a density"):
+        loads(text, source="demo.toml")
+    assert loads(text.replace('"1000 bar"', '"1000 kg/m^3"'), source="demo.toml")
