@@ -315,7 +315,13 @@ def _parse(text: str) -> tuple[float, tuple, int]:
     while pos < len(src):
         m = _TOKEN.match(src, pos)
         if not m or m.end() == pos:
-            if src[pos] == "," and src[pos + 1:pos + 2].isdigit():
+            digits = re.match(r",(\d+)", src[pos:])
+            if digits and len(digits.group(1)) == 3:
+                # "1,500 rpm": a thousands separator, or a decimal comma
+                raise UnitError(f"cannot read {text!r}: a comma is read neither as a thousands "
+                                f"separator nor as a decimal point: write '1500' or '1 500' "
+                                f"for fifteen hundred, '1.5' for one and a half")
+            if digits:
                 raise UnitError(f"cannot read {text!r}: write a decimal point, not a comma "
                                 f"('0.5 L' for '0,5 L')")
             raise UnitError(f"cannot read unit {text!r} at {src[pos:]!r}")
@@ -450,7 +456,8 @@ def to_unit(value, unit: str, what: str = "value") -> float:
                     f"{what} = {value!r} has no unit, and {what} is {kind(dim)} [{unit}]: "
                     f"write the unit meant ('{m.group(1)} {unit}'" + (
                         f", or another such as '{m.group(1)} {_example_unit(unit)}'"
-                        if _example_unit(unit) != unit else "") +
+                        if _example_unit(unit) != unit and 1e-3 <= abs(number) < 1e4
+                        else "") +
                     f"), or the number {m.group(1)} for {unit}")
             return number
         try:

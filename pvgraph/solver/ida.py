@@ -664,7 +664,8 @@ class IDAIntegrator:
     def _hinted(self, text) -> str:
         """``text`` with the hint of equations that constrain the states alone, where the
         caller found some (see solve._constraint_rows)."""
-        hint = getattr(self, "index_hint", "")
+        hint = getattr(self, "index_hint", None)
+        hint = hint() if callable(hint) else hint
         return text + ". " + hint.rstrip(". ") if hint else text
 
     def _reads_no_rate(self, j) -> bool:

@@ -579,7 +579,23 @@ def _final_actions(fired, event_list, te, ye, ype, initialise, mode, ts, ys, yps
     times) take it."""
     if all(event_list[j].action is None for j in fired):
         return
-    ye, ype = _apply_actions(fired, event_list, te, ye, ype, initialise, mode)
+    y_act, yp_act = ye, ype
+    for j in fired:
+        y_act, yp_act = event_list[j].apply(te, y_act, yp_act)
+    try:
+        ye, ype = initialise(te, y_act, yp_act, mode)
+    except InitializationError as exc:
+        # nothing is integrated after the stop: the state the actions left is the last row
+        # (an index-two DAE is not made consistent by a restart; values the actions did not
+        # change stand as they were found)
+        if not (np.array_equal(y_act, ye) and np.array_equal(yp_act, ype)):
+            names = ", ".join(repr(event_list[j].name) for j in fired)
+            warnings.warn(PlausibilityWarning(
+                f"{SOLVER_NAME}: the run stopped at the terminal event {names} at t = "
+                f"{te:.9g}; the state its actions left could not be made consistent ({exc}); "
+                f"the last output row is that state as the actions returned it."),
+                stacklevel=outside_stacklevel())
+        ye, ype = y_act, yp_act
     if steps:
         ts.append(te)
         ys.append(ye.copy())
@@ -643,16 +659,26 @@ def _constraint_rows(jacobian, t0, y0, yp0, r0, alg_mask) -> list:
     position). Empty where that cannot be told."""
     try:
         cy = alg_mask.astype(float)
-        m = jacobian.mixed_matrix(t0, y0, yp0, r0, cy, 1.0 - cy, np.maximum(np.abs(y0), 1.0))
-        m = m.toarray() if hasattr(m, "toarray") else np.asarray(m)
-        d = jacobian.mixed_matrix(t0, y0, yp0, r0, 1.0 - cy, np.zeros(y0.size),
-                                  np.maximum(np.abs(y0), 1.0))
-        d = d.toarray() if hasattr(d, "toarray") else np.asarray(d)
+        scale = np.maximum(np.abs(y0), 1.0)
+        m = jacobian.mixed_matrix(t0, y0, yp0, r0, cy, 1.0 - cy, scale)
+        d = jacobian.mixed_matrix(t0, y0, yp0, r0, 1.0 - cy, np.zeros(y0.size), scale)
     except Exception:       # noqa: BLE001  (only a hint for the messages)
         return []
-    if not (np.all(np.isfinite(m)) and np.all(np.isfinite(d))):
+
+    def rows_with_entries(a):
+        """Per row: holds a nonzero (None where an entry is not finite)."""
+        if hasattr(a, "tocsr"):
+            a = a.tocsr()
+            a.eliminate_zeros()
+            if not np.all(np.isfinite(a.data)):
+                return None
+            return np.diff(a.indptr) > 0
+        a = np.asarray(a)
+        return None if not np.all(np.isfinite(a)) else np.any(a != 0.0, axis=1)
+    in_m, in_d = rows_with_entries(m), rows_with_entries(d)
+    if in_m is None or in_d is None:
         return []
-    return [int(i) for i in np.flatnonzero(np.all(m == 0.0, axis=1) & np.any(d != 0.0, axis=1))]
+    return [int(i) for i in np.flatnonzero(~in_m & in_d)]
 
 
 def _index_hint(rows) -> str:
@@ -689,10 +715,16 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     else:
         fun = residual
     jacobian = JacobianEvaluator(fun, n, jac, jac_sparsity, typical=atol / rtol)
-    constraint_rows = []
+    constraint_rows = None      # found when a message needs them (see _constraint_rows)
     if alg_given and alg_mask.any() and not _of_a_system(residual):
         _check_declared_algebraic(jacobian, t0, y0, yp0, r0, alg_mask, var_names)
-        constraint_rows = _constraint_rows(jacobian, t0, y0, yp0, r0, alg_mask)
+        start = (t0, y0.copy(), yp0.copy(), r0.copy())
+
+        def constraint_rows():
+            got = getattr(constraint_rows, "got", None)
+            if got is None:
+                got = constraint_rows.got = _constraint_rows(jacobian, *start, alg_mask)
+            return got
     lu_kind = _lu_kind(linear_solver, residual, n)
     if lu_kind == "c":
         jacobian.dense_only = True      # the C LU takes dense matrices (n <= CLU_MAX_N)
@@ -722,7 +754,8 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     integ = make_integrator(c_step, fun, n, rtol, atol, error_mask, jacobian, lu, max_order,
                             max_step, var_names, no_growth_after_failure, nonnegative,
                             newton_iterate_retry)
-    integ.index_hint = _index_hint(constraint_rows)
+    if constraint_rows is not None:
+        integ.index_hint = lambda: _index_hint(constraint_rows())
     integ.reinit(t0, y, yp, t_end, first_step)
     solved = {"nre": 0, "nlu": 0}
     # output rows between steps are the step's interpolant (integ.interpolate), which keeps
@@ -957,8 +990,9 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         hint = ("an algebraic variable of a DAE of index above one (name the algebraic "
                 "variables with algebraic=[...] and leave them out of the test with "
                 "suppress_alg=True), " if error_mask is None else "")
-        if constraint_rows:
-            hint = _index_hint(constraint_rows) + "Otherwise: " + hint
+        rows = constraint_rows() if constraint_rows is not None else []
+        if rows:
+            hint = _index_hint(rows) + "Otherwise: " + hint
         warnings.warn(PlausibilityWarning(
             f"{SOLVER_NAME}: {integ.netf} of {integ.nst} steps failed the local error test: "
             f"the step is held by something the error test cannot follow: {hint}a switch or "

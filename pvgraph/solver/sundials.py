@@ -500,10 +500,15 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                 stopped = True      # the output times after it are not reached
                 if any(event_list[j].action is not None for j in fired):
                     # the actions at the instant still run (see solve._final_actions)
+                    y_act, yp_act = ye, ype
                     for j in fired:
-                        ye, ype = event_list[j].apply(te, ye, ype)
-                    ye, ype, _ = initialise(te, ye, ype, calc_initial if calc_initial is not
-                                            None else "algebraic")
+                        y_act, yp_act = event_list[j].apply(te, y_act, yp_act)
+                    try:
+                        ye, ype, _ = initialise(te, y_act, yp_act, calc_initial if
+                                                calc_initial is not None else "algebraic")
+                    except InitializationError:
+                        # nothing runs after the stop: the actions' state is the last row
+                        ye, ype = y_act, yp_act
                     if t_eval is None:
                         ts.append(te)
                         ys.append(ye.copy())

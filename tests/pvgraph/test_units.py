@@ -354,3 +354,10 @@ def test_units_written_as_on_a_data_sheet_get_a_way_out(written, told):
     unit = "Pa" if "bar" in written else "m^3"
     with pytest.raises(UnitError, match=re.escape(told)):
         to_unit(written, unit, "x")
+
+
+def test_a_comma_before_three_digits_is_told_as_ambiguous():
+    # "1,500 rpm" was told to become "1.500 rpm": 1000 times off if it meant fifteen hundred
+    with pytest.raises(UnitError, match=r"neither as a thousands separator nor as a decimal "
+                                        r"point: write '1500' or '1 500'"):
+        to_unit("1,500 rpm", "rad/s", "w")

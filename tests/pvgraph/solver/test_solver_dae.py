@@ -191,3 +191,28 @@ def test_an_index_two_restart_after_an_action_asks_the_action_for_consistent_val
     text = str(info.value)
     assert text.startswith("after event 'x0' at t = 0.52156")
     assert "Return such values from the action" in text and "give such y0" not in text
+
+
+def test_a_terminal_event_on_an_index_two_dae_keeps_its_run():
+    """The index-two pendulum stopped by a terminal event at the bottom whose action records
+    the time: the restart's consistent values cannot be computed for index two, which
+    discarded the run; nothing runs after the stop, so the state stands."""
+    from pvgraph.solver import Event
+    g, th0 = 9.81, np.pi / 4
+    x0, y0, lam0 = np.sin(th0), -np.cos(th0), g * np.cos(th0)
+    seen = []
+
+    def pendulum(t, s, sp):
+        x, y, u, v, lam = s
+        return np.array([sp[0] - u, sp[1] - v, sp[2] + lam * x, sp[3] + lam * y + g,
+                         x * u + y * v])
+    ev = Event(lambda t, s, sp: s[0], direction=-1, terminal=True, name="bottom",
+               action=lambda t, s, sp: seen.append(t))
+    res = solve_dae(pendulum, (0.0, 2.0), [x0, y0, 0.0, 0.0, lam0],
+                    [0.0, 0.0, -lam0 * x0, -lam0 * y0 - g, 0.0], rtol=1e-8, atol=1e-8,
+                    algebraic=[4], suppress_alg=True, calc_initial=None, events=[ev])
+    assert "terminal event ('bottom')" in res.message and len(seen) == 1
+    from scipy.special import ellipk
+    quarter = np.sqrt(1.0 / g) * ellipk(np.sin(th0 / 2) ** 2)   # a quarter period from 45 deg
+    assert res.t[-1] == pytest.approx(quarter, abs=1e-6)
+    assert abs(res.y[-1, 0]) < 1e-9
