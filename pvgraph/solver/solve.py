@@ -720,11 +720,11 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         _check_declared_algebraic(jacobian, t0, y0, yp0, r0, alg_mask, var_names)
         start = (t0, y0.copy(), yp0.copy(), r0.copy())
 
-        def constraint_rows():
-            got = getattr(constraint_rows, "got", None)
-            if got is None:
-                got = constraint_rows.got = _constraint_rows(jacobian, *start, alg_mask)
-            return got
+        def found_rows(kept=[]):     # noqa: B006  (computed once, kept for the run)
+            if not kept:
+                kept.append(_constraint_rows(jacobian, *start, alg_mask))
+            return kept[0]
+        constraint_rows = found_rows
     lu_kind = _lu_kind(linear_solver, residual, n)
     if lu_kind == "c":
         jacobian.dense_only = True      # the C LU takes dense matrices (n <= CLU_MAX_N)
