@@ -96,16 +96,25 @@ class ReliefValveParams(_RestrictionParams):
                          description="Jet angle of the flow force [rad] (pi/2: no flow force)")
     Q_rated: Optional[float] = Field(
         None, gt=0.0, le=1.0,
-        description="Flow the valve passes fully open at p_full, in the circuit's fluid "
-                    "[m^3/s], instead of w (ReliefValve.from_setting gives it): the opening's "
-                    "area gradient is then Q_rated / (Cd sqrt(2 p_full / rho) x_max) at run "
-                    "time, so the data-sheet point holds whatever rho and Cd the circuit gives")
+        description="Flow the valve passes fully open at p_rated, in the circuit's fluid "
+                    "[m^3/s], instead of w (ReliefValve.from_setting gives both): the "
+                    "opening's area gradient is then Q_rated / (Cd sqrt(2 p_rated / rho) "
+                    "x_max) at run time, so the data sheet's point holds whatever rho the "
+                    "circuit gives (Cd w is what a data sheet fixes: Cd then scales the "
+                    "leakage only)")
+    p_rated: Optional[float] = Field(
+        None, gt=0.0, le=1e8,
+        description="Pressure drop at which Q_rated passes fully open [Pa] (the data "
+                    "sheet's p_crack + dp_rated; a setting changed later keeps the opening)")
 
     @model_validator(mode="after")
     def _leak(self):
         if (self.w is None) == (self.Q_rated is None):
             raise ValueError("give the opening as its area gradient w or as the flow Q_rated "
-                             "it passes fully open (from_setting), one of the two")
+                             "it passes fully open at p_rated (from_setting), one of the two")
+        if (self.Q_rated is None) != (self.p_rated is None):
+            raise ValueError("Q_rated and p_rated go together: the flow the valve passes fully "
+                             "open, and the pressure drop it passes it at")
         if self.A_leak >= 0.01 * self.w_open * self.x_max:
             raise ValueError(f"A_leak ({self.A_leak!r}) must be below 1 % of w * x_max")
         return self
@@ -122,12 +131,11 @@ class ReliefValveParams(_RestrictionParams):
 
 
 def rated_gradient(p):
-    """The area gradient [m^2/m] that passes ``p.Q_rated`` fully open at ``p_full`` (numbers or
-    the traced parameters alike)."""
-    p_full = p.p_crack + p.k * p.x_max / p.A_s
-    return p.Q_rated / (p.Cd * E.sqrt(2.0 * p_full / p.rho) * p.x_max) \
-        if isinstance(p.Q_rated, E.Expr) or isinstance(p.rho, E.Expr) else \
-        p.Q_rated / (p.Cd * math.sqrt(2.0 * p_full / p.rho) * p.x_max)
+    """The area gradient [m^2/m] that passes ``p.Q_rated`` fully open at ``p.p_rated`` (numbers
+    or the traced parameters alike)."""
+    if any(isinstance(x, E.Expr) for x in (p.Q_rated, p.p_rated, p.rho, p.Cd, p.x_max)):
+        return p.Q_rated / (p.Cd * E.sqrt(2.0 * p.p_rated / p.rho) * p.x_max)
+    return p.Q_rated / (p.Cd * math.sqrt(2.0 * p.p_rated / p.rho) * p.x_max)
 
 
 def relief_opening(dp, p, w=None):
@@ -169,9 +177,10 @@ class ReliefValve(Component):
         225 bar at 70 L/min, 371 bar at 90 L/min). Give the largest flow the valve will
         pass, not a catalogue's nominal flow, where the characteristic must stay flat; a
         data sheet's p-Q curve read at two flows gives ``dp_rated`` at that flow. The point
-        holds in the circuit's fluid: the opening is sized from ``Q_rated`` at run time (a
-        circuit's :meth:`~pvgraph.Circuit.use_fluid` or a runtime ``rho`` keeps it), as a
-        ServoValve keeps its rated flow."""
+        holds in the circuit's fluid: the opening is sized from ``Q_rated`` at ``p_rated``
+        (``p_crack + dp_rated``) at run time (a circuit's
+        :meth:`~pvgraph.Circuit.use_fluid` or a runtime ``rho`` keeps it), as a ServoValve
+        keeps its rated flow; a setting changed later keeps the opening."""
         from pvgraph.units import number_in
         p_crack = number_in(p_crack, "Pa", "ReliefValve.from_setting p_crack")
         Q = number_in(Q_rated, "m^3/s", "ReliefValve.from_setting Q_rated")
@@ -181,14 +190,14 @@ class ReliefValve(Component):
                 from pvgraph.errors import ParameterError
                 raise ParameterError(f"ReliefValve.from_setting: {name} must be positive, got "
                                      f"{value!r}")
-        for name in ("A_s", "k", "x_max", "w", "theta", "p_crack", "Q_rated"):
+        for name in ("A_s", "k", "x_max", "w", "theta", "p_crack", "Q_rated", "p_rated"):
             if name in params:
                 from pvgraph.errors import ParameterError
                 raise ParameterError(f"ReliefValve.from_setting chooses {name} from the setting; "
                                      f"give the spool's parameters to ReliefValve(...) instead")
         x_max, a_s = 1e-3, 20e-6
         return cls(p_crack=p_crack, A_s=a_s, k=dp_o * a_s / x_max, x_max=x_max,
-                   theta=math.pi / 2, Q_rated=Q, **params)
+                   theta=math.pi / 2, Q_rated=Q, p_rated=p_crack + dp_o, **params)
 
     def equations(self, v, p):
         dp = v.observe("dp", v.P.p - v.T.p, "Pa", "pressure drop P - T")
@@ -216,6 +225,9 @@ class DynamicReliefValveParams(ReliefValveParams):
         if self.Q_rated is not None:
             raise ValueError("Q_rated sizes the quasi-static ReliefValve (from_setting); a "
                              "dynamic valve's opening is its area gradient w")
+        if self.p_rated is not None:
+            raise ValueError("p_rated goes with Q_rated, which sizes the quasi-static "
+                             "ReliefValve (from_setting) only")
         return self
 
 

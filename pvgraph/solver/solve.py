@@ -465,11 +465,12 @@ def _first_hit(found, event_list, interpolate, records, t_old, t_new):
     return None
 
 
-def _chattering(state, te, fired, event_list, h, solver_name=SOLVER_NAME):
+def _chattering(state, te, fired, event_list, h, solver_name=SOLVER_NAME, ulps=64.0):
     """``(first time, count)`` of the actions in a row with no time between them (their zeros
-    apart by rounding only); SolverError once the count reaches CHATTER_EVENTS."""
+    apart by rounding only: ``ulps`` units of ``max(|t|, |h|)``; IDA locates a root to 100
+    units of ``|t| + |h|``); SolverError once the count reaches CHATTER_EVENTS."""
     t_first, count, t_last = state if state is not None else (te, 0, te)
-    if te - t_last > 64.0 * UROUND * max(abs(te), abs(h), 1e-300):
+    if te - t_last > ulps * UROUND * max(abs(te), abs(h), 1e-300):
         t_first, count = te, 0
     count += 1
     if count >= CHATTER_EVENTS:
@@ -653,32 +654,31 @@ def _check_declared_algebraic(jacobian, t0, y0, yp0, r0, alg_mask, var_names):
 
 
 def _constraint_rows(jacobian, t0, y0, yp0, r0, alg_mask) -> list:
-    """The equations that read neither a rate nor an algebraic variable at the start (and do
-    read a state): constraints on the states alone, a DAE of index two at least (three where
-    the constraint's derivative does not read the algebraic variables either: a pendulum's
-    position). Empty where that cannot be told."""
+    """The equations that read no rate and no algebraic variable at the start (and do read a
+    state): constraints on the states alone, a DAE of index two at least (three where the
+    constraint's derivative does not read the algebraic variables either: a pendulum's
+    position). A variable whose rate no equation reads counts as algebraic, declared or
+    not. Empty where that cannot be told."""
+    import scipy.sparse as sp
     try:
-        cy = alg_mask.astype(float)
+        n = y0.size
         scale = np.maximum(np.abs(y0), 1.0)
-        m = jacobian.mixed_matrix(t0, y0, yp0, r0, cy, 1.0 - cy, scale)
-        d = jacobian.mixed_matrix(t0, y0, yp0, r0, 1.0 - cy, np.zeros(y0.size), scale)
+        dyp = jacobian.mixed_matrix(t0, y0, yp0, r0, np.zeros(n), np.ones(n), scale)
+        dy = jacobian.mixed_matrix(t0, y0, yp0, r0, np.ones(n), np.zeros(n), scale)
+        dyp, dy = sp.csr_matrix(dyp), sp.csr_matrix(dy)
     except Exception:       # noqa: BLE001  (only a hint for the messages)
         return []
-
-    def rows_with_entries(a):
-        """Per row: holds a nonzero (None where an entry is not finite)."""
-        if hasattr(a, "tocsr"):
-            a = a.tocsr()
-            a.eliminate_zeros()
-            if not np.all(np.isfinite(a.data)):
-                return None
-            return np.diff(a.indptr) > 0
-        a = np.asarray(a)
-        return None if not np.all(np.isfinite(a)) else np.any(a != 0.0, axis=1)
-    in_m, in_d = rows_with_entries(m), rows_with_entries(d)
-    if in_m is None or in_d is None:
+    if not (np.all(np.isfinite(dyp.data)) and np.all(np.isfinite(dy.data))):
         return []
-    return [int(i) for i in np.flatnonzero(~in_m & in_d)]
+    dyp.eliminate_zeros()
+    dy.eliminate_zeros()
+    algebraic = np.asarray(alg_mask, dtype=bool) | (np.diff(dyp.tocsc().indptr) == 0)
+    reads_rate = np.diff(dyp.indptr) > 0
+    on_alg = dy[:, np.flatnonzero(algebraic)]
+    on_states = dy[:, np.flatnonzero(~algebraic)]
+    reads_alg = np.diff(on_alg.indptr) > 0
+    reads_state = np.diff(on_states.indptr) > 0
+    return [int(i) for i in np.flatnonzero(~reads_rate & ~reads_alg & reads_state)]
 
 
 def _index_hint(rows) -> str:

@@ -521,7 +521,8 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
                 break
             # actions in a row at one instant (a sliding mode): stopped as the built-in solver
             # stops them, instead of running to max_steps
-            chatter = _chattering(chatter, te, fired, event_list, 0.0, SOLVER_NAME)
+            chatter = _chattering(chatter, te, fired, event_list, dt_hit, SOLVER_NAME,
+                                  ulps=400.0)
             located = (te, ye.copy(), ype.copy())
             for j in fired:
                 ye, ype = event_list[j].apply(te, ye, ype)

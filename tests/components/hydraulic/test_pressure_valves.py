@@ -312,6 +312,7 @@ def test_a_valve_from_its_setting_has_no_dead_area_gradient():
     from pvgraph.components.hydraulic import FlowSource, VolumeNode
     rv = ReliefValve.from_setting("150 bar", "60 L/min", "15 bar")
     assert rv.params.w is None and rv.params.Q_rated == pytest.approx(1e-3)
+    assert rv.params.p_rated == pytest.approx(165e5)
     c = Circuit("rv")
     c.add("pump", FlowSource(Q="60 L/min"))
     c.add("node", VolumeNode(V="0.1 L"))
@@ -326,5 +327,11 @@ def test_a_valve_from_its_setting_has_no_dead_area_gradient():
     assert 150e5 < p < 160e5
     with pytest.raises(ParameterError, match="area gradient w or as the flow Q_rated"):
         steady_state(system, params={"rv.w": 0.01})
+    # a setting turned up keeps the opening (rated at 165 bar): 60 L/min opens it to
+    # x/x_max = sqrt(165 bar / dp), so dp - 300 bar = 15 bar x/x_max
+    from scipy.optimize import brentq
+    want = brentq(lambda dp: dp - 300e5 - 15e5 * (165e5 / dp) ** 0.5, 300e5, 320e5)
+    got = steady_state(system, params={"rv.p_crack": 300e5})["node.port.p"]
+    assert got == pytest.approx(want, abs=0.05e5)
     with pytest.raises(ParameterError, match="area gradient w or as the flow Q_rated"):
         ReliefValve(p_crack="150 bar", A_s="20 mm^2", k=3e4, x_max="1 mm")
