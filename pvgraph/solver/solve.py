@@ -572,7 +572,22 @@ def _apply_actions(fired, event_list, te, ye, ype, initialise, mode):
         raise InitializationError(f"after event {names} at t = {te:.9g}: {text}") from exc
 
 
-def _final_actions(fired, event_list, te, ye, ype, initialise, mode, ts, ys, yps, steps):
+def _rows_after_action(ts, ys, yps, te, ye, ype, steps):
+    """The output after an action at ``te``: a row of its own after the state before
+    (``steps``: the rows are the steps), or the rows at ``te`` (output times) take it."""
+    if steps:
+        ts.append(te)
+        ys.append(ye.copy())
+        yps.append(ype.copy())
+        return
+    for k in range(len(ts) - 1, -1, -1):
+        if ts[k] < te:
+            break
+        ys[k], yps[k] = ye.copy(), ype.copy()
+
+
+def _final_actions(fired, event_list, te, ye, ype, initialise, mode, ts, ys, yps, steps,
+                   solver_name=SOLVER_NAME):
     """At a terminal event: the actions of the events ``fired`` with it still run (a mode
     switch, a reset at the instant the run stops, as Modelica's when-clauses run at a
     ``terminate()``), and the output ends with the state after them: a row of its own after
@@ -592,20 +607,12 @@ def _final_actions(fired, event_list, te, ye, ype, initialise, mode, ts, ys, yps
         if not (np.array_equal(y_act, ye) and np.array_equal(yp_act, ype)):
             names = ", ".join(repr(event_list[j].name) for j in fired)
             warnings.warn(PlausibilityWarning(
-                f"{SOLVER_NAME}: the run stopped at the terminal event {names} at t = "
+                f"{solver_name}: the run stopped at the terminal event {names} at t = "
                 f"{te:.9g}; the state its actions left could not be made consistent ({exc}); "
                 f"the last output row is that state as the actions returned it."),
                 stacklevel=outside_stacklevel())
         ye, ype = y_act, yp_act
-    if steps:
-        ts.append(te)
-        ys.append(ye.copy())
-        yps.append(ype.copy())
-        return
-    for k in range(len(ts) - 1, -1, -1):
-        if ts[k] < te:
-            break
-        ys[k], yps[k] = ye.copy(), ype.copy()
+    _rows_after_action(ts, ys, yps, te, ye, ype, steps)
 
 
 def _nonnegative(nonnegative, n, y0, var_names):
@@ -960,15 +967,8 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
         elif end_hit is not None:
             ye, ype = _apply_actions(end_hit[1], event_list, t_end, end_hit[3], end_hit[4],
                                      initialise, restart_mode)
-            if t_eval is None:          # the state before and after, as at other actions
-                ts.append(t_end)
-                ys.append(ye.copy())
-                yps.append(ype.copy())
-            else:
-                for k in range(len(ts) - 1, -1, -1):
-                    if ts[k] < t_end:
-                        break
-                    ys[k], yps[k] = ye.copy(), ype.copy()
+            # the state before and after, as at other actions
+            _rows_after_action(ts, ys, yps, t_end, ye, ype, t_eval is None)
 
     nre = counted.calls + integ.nre + jacobian.nfev + solved["nre"]
     stats = {

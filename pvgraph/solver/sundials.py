@@ -213,7 +213,8 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
     .. [2] scikit-sundae, https://github.com/NatLabRockies/scikit-sundae
     """
     sksundae = _import_sksundae()
-    from .solve import (_as_mask, _chattering, _check_declared_algebraic, _of_a_system,
+    from .solve import (_as_mask, _chattering, _check_declared_algebraic, _final_actions,
+                        _of_a_system,
                         check_arguments)
     t0, t_end, y, yp, rtol, atol_arr, var_names = check_arguments(
         t_span, y0, yp0, rtol, atol, max_steps, var_names)
@@ -498,26 +499,11 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
             if ev.terminal:
                 message = f"A terminal event ({ev.name!r}) occurred at t = {te:.9g}."
                 stopped = True      # the output times after it are not reached
-                if any(event_list[j].action is not None for j in fired):
-                    # the actions at the instant still run (see solve._final_actions)
-                    y_act, yp_act = ye, ype
-                    for j in fired:
-                        y_act, yp_act = event_list[j].apply(te, y_act, yp_act)
-                    try:
-                        ye, ype, _ = initialise(te, y_act, yp_act, calc_initial if
-                                                calc_initial is not None else "algebraic")
-                    except InitializationError:
-                        # nothing runs after the stop: the actions' state is the last row
-                        ye, ype = y_act, yp_act
-                    if t_eval is None:
-                        ts.append(te)
-                        ys.append(ye.copy())
-                        yps.append(ype.copy())
-                    else:
-                        for k in range(len(ts) - 1, -1, -1):
-                            if ts[k] < te:
-                                break
-                            ys[k], yps[k] = ye.copy(), ype.copy()
+                # the actions at the instant still run
+                _final_actions(fired, event_list, te, ye, ype,
+                               lambda t, y_, yp_, m: initialise(t, y_, yp_, m)[:2],
+                               calc_initial if calc_initial is not None else "algebraic",
+                               ts, ys, yps, t_eval is None, SOLVER_NAME)
                 break
             # actions in a row at one instant (a sliding mode): stopped as the built-in solver
             # stops them, instead of running to max_steps
