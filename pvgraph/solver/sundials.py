@@ -214,8 +214,7 @@ def solve_dae_sundials(residual, t_span, y0, yp0, *, rtol=1e-6, atol=1e-8, algeb
     """
     sksundae = _import_sksundae()
     from .solve import (_as_mask, _chattering, _check_declared_algebraic, _final_actions,
-                        _of_a_system,
-                        check_arguments)
+                        _of_a_system, check_arguments)
     t0, t_end, y, yp, rtol, atol_arr, var_names = check_arguments(
         t_span, y0, yp0, rtol, atol, max_steps, var_names)
     n = y.size
