@@ -102,9 +102,19 @@ def cmd_validate(args) -> int:
     return 0
 
 
-#: the files pvgraph validate writes into its --out folder (besides the default --json)
-OUT_FILES = ("validation_targets.json", "flow_vs_voltage.png", "step_dp_L3.png",
-             "calibration.json", "cross_validation.json")
+def _out_files(args) -> list:
+    """The files this ``pvgraph validate`` writes into its --out folder (besides the default
+    --json), by its options."""
+    files = ["validation_targets.json"]
+    if not args.no_plots:
+        files += ["flow_vs_voltage.png", "step_dp_L3.png"]
+    if args.calibrate:
+        files.append("calibration.json")
+    if args.cross_validate:
+        files.append("cross_validation.json")
+        if not args.no_plots:
+            files.append("cross_validation.png")
+    return files
 
 
 def _check_json_beside_out(args) -> None:
@@ -119,7 +129,7 @@ def _check_json_beside_out(args) -> None:
             f"is a folder above --out {args.out!r}"
         raise PvgraphError(f"--json {args.json!r} {where}; give a file name, e.g. "
                            f"{os.path.join(args.out, 'validation.json')!r}")
-    clash = [name for name in OUT_FILES if json_path == os.path.join(out, name)]
+    clash = [name for name in _out_files(args) if json_path == os.path.join(out, name)]
     if clash:
         raise PvgraphError(f"--json {args.json!r} is the file {clash[0]} the command writes "
                            f"into --out; give another name, e.g. "

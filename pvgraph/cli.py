@@ -440,10 +440,15 @@ def cmd_vars(args) -> int:
 
 def cmd_graph(args) -> int:
     from .plotting import draw_circuit
+    if args.out is None:        # the default name follows the format asked for
+        args.out = f"circuit.{args.format or 'png'}"
     suffix = os.path.splitext(args.out)[1].lstrip(".").lower()
+    suffix = {"gv": "dot"}.get(suffix, suffix)      # Graphviz's own extension
     if args.format is None and suffix not in ("png", "svg", "dot"):
         raise PvgraphError(f"--out {args.out!r}: the format comes from the extension; name "
-                           f"the file .png, .svg or .dot, or give --format")
+                           f"the file .png, .svg, .dot or .gv" + (
+                               ", or give --format for a name without one" if not suffix
+                               else ""))
     if args.format is not None and suffix and suffix != args.format:
         raise PvgraphError(f"--format {args.format} but --out {args.out!r} is named "
                            f".{suffix}; name it "
@@ -576,7 +581,8 @@ def _check_units_not_mixed(name: str, values: list[str], spell, declared=None) -
     refused: the plain one would be read as SI, not in the other's unit. ``spell(values)``
     writes the spec back from its values (for the correct spellings in the message);
     ``declared`` is the parameter's SI unit."""
-    bare = [v.strip() for v in values if _is_bare(v)]
+    # zero is zero in every unit (no unit of the library has an offset)
+    bare = [v.strip() for v in values if _is_bare(v) and float(v) != 0.0]
     given = [v.strip() for v in values if not _is_bare(v)]
     if not bare or not given:
         return
@@ -724,6 +730,18 @@ def run_sweep(args, run, cases, units, check):
     return result, backend
 
 
+def _canonical_target(spec: str) -> str:
+    """``spec`` with the file it names as its real path (``./my_rig.py:build``, its absolute
+    path and the path from another folder are one target, for a sweep's record), else as
+    it is (a registered circuit, a module)."""
+    module_part, colon, attr = spec.rpartition(":")
+    if colon and module_part.endswith(".py") and os.path.exists(module_part):
+        return f"{os.path.realpath(module_part)}:{attr}"
+    if spec.endswith((".py", ".toml", ".json")) and os.path.exists(spec):
+        return os.path.realpath(spec)
+    return spec
+
+
 def _target_circuit(target: str, options: dict, modules=()):
     """The circuit of a command-line target (a picklable factory for the sweep's workers)."""
     return load_target(target, options, modules).circuit()
@@ -821,7 +839,7 @@ def cmd_sweep(args) -> int:
     # compiled once per worker; each case runs with its values as runtime parameters
     from .analysis.sweep import CompiledRun
     run = functools.partial(_noted_case, CompiledRun(
-        functools.partial(_target_circuit, args.target, target.options,
+        functools.partial(_target_circuit, _canonical_target(args.target), target.options,
                           tuple(args.module or ())),
         outputs=dict(zip(outputs, resolved)), t_end=None if args.steady else t_end,
         rtol=args.rtol, steady=args.steady, warm=args.steady))
@@ -1207,7 +1225,8 @@ def build_parser() -> argparse.ArgumentParser:
     g = parsers["graph"] = sub.add_parser(
         "graph", help="draw a circuit as a layered schematic (PNG, SVG or Graphviz DOT)")
     _add_target(g)
-    g.add_argument("--out", default="circuit.png", type=_output_path, help="output file (default: %(default)s)")
+    g.add_argument("--out", default=None, type=_output_path,
+                   help="output file (default: circuit.png, or circuit.FORMAT with --format)")
     g.add_argument("--format", choices=["png", "svg", "dot"],
                    help="default: from the extension of --out (which must then agree)")
     g.set_defaults(func=cmd_graph)
@@ -1328,9 +1347,13 @@ def main(argv=None) -> int:
     if backend is None and before is not None:      # as compile() reads it: checked here
         backend = before.strip().lower()
         if backend not in ("", "python", "c", "auto"):
-            print(f"pvgraph {args.command}: error: PVGRAPH_BACKEND={before!r}: choose "
-                  f"python, c or auto (or unset it; --eval overrides it)", file=sys.stderr)
-            return 2
+            if args.command in ("components", "circuits"):     # they compile nothing
+                backend = before
+            else:
+                print(f"pvgraph {args.command}: error: PVGRAPH_BACKEND={before!r}: choose "
+                      f"python, c or auto (or unset it; --eval overrides it)",
+                      file=sys.stderr)
+                return 2
     if backend is not None and backend != before:   # in the environment, so worker
         os.environ["PVGRAPH_BACKEND"] = backend     # processes see it too
     try:

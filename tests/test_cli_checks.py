@@ -612,3 +612,61 @@ def test_resume_with_other_builder_options_exits_2(rig, tmp_path, capsys):
         and "20 L/min" in err
     assert (out / "cases.jsonl").read_text() == before
     assert main(args + ["--option", 'Q="10 L/min"', "--resume"]) == 0
+
+
+# --------------------------------------------------------------------------------------------
+# legitimate uses the up-front checks must let through
+
+def test_a_zero_bound_beside_a_quantity_is_zero_in_any_unit(rig, tmp_path, capsys):
+    # "0:10 L/min:3" was refused as mixing units; 0 is 0 in L/min as in m^3/s
+    out = tmp_path / "z"
+    assert _sweep(rig, out, "--param", "pump.Q=0:10 L/min:3") == 0
+    rows = json.loads((out / "sweep.json").read_text())
+    cases = rows["cases"] if "cases" in rows else rows["records"]
+    values = [c["params"]["pump.Q"] if "params" in c else c["pump.Q"] for c in cases]
+    assert values == pytest.approx([0.0, 5 / 60000, 10 / 60000], rel=1e-12)
+
+
+def test_resume_takes_the_same_file_however_it_is_spelled(rig, tmp_path, monkeypatch):
+    # ./my_rig.py:build and its absolute path were "another run"
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "study"
+    assert _sweep(rig, out, "--param", "orifice.A=1e-6:2e-6:2") == 0
+    assert _sweep("./my_rig.py:build", out, "--param", "orifice.A=1e-6:2e-6:2",
+                  "--resume") == 0
+
+
+@pytest.mark.parametrize("args, written", [
+    (["--out", "c.gv", "--format", "dot"], "c.gv"), (["--out", "c.gv"], "c.gv"),
+    (["--format", "svg"], "circuit.svg"), (["--format", "dot"], "circuit.dot")])
+def test_graph_writes_dot_as_gv_and_names_the_default_by_the_format(args, written, rig,
+                                                                   tmp_path, monkeypatch,
+                                                                   capsys):
+    # --format dot --out c.gv was refused; --format svg alone was refused over the default
+    # name circuit.png it never typed
+    monkeypatch.chdir(tmp_path)
+    assert main(["graph", rig, *args]) == 0
+    text = (tmp_path / written).read_text()
+    assert text.lstrip().startswith("<?xml" if written.endswith("svg") else "graph")
+
+
+def test_a_listing_command_runs_whatever_pvgraph_backend_says(monkeypatch, capsys):
+    monkeypatch.setenv("PVGRAPH_BACKEND", "numba")
+    assert main(["components", "Orifice"]) == 0
+    assert main(["simulate", "nothing.py:build"]) == 2
+
+
+def test_validate_refuses_only_the_files_this_run_writes(tmp_path):
+    import argparse
+    from pvgraph.circuits.cli import _check_json_beside_out
+    from pvgraph.errors import PvgraphError
+    out = tmp_path / "rep"
+
+    def args(json_name, **options):
+        given = {"no_plots": False, "calibrate": False, "cross_validate": False, **options}
+        return argparse.Namespace(json=str(out / json_name), out=str(out), **given)
+    _check_json_beside_out(args("calibration.json"))         # not written without --calibrate
+    with pytest.raises(PvgraphError, match="calibration.json the command writes"):
+        _check_json_beside_out(args("calibration.json", calibrate=True))
+    with pytest.raises(PvgraphError, match="cross_validation.png the command writes"):
+        _check_json_beside_out(args("cross_validation.png", cross_validate=True))

@@ -859,8 +859,21 @@ def sweep(run: Callable[..., Mapping[str, float]], cases: Iterable[Mapping[str, 
     log_path = None if out is None else os.path.join(os.fspath(out), LOG_NAME)
     identity = run_identity(run)
     if resume and os.path.exists(log_path):
-        records = {i: r for i, r in _read_log(log_path, cases).items() if r.ok}
+        records = {i: r for i, r in _read_log(
+            log_path, cases, run.in_si if isinstance(run, CompiledRun) else None).items()
+            if r.ok}
         before = _recorded_identity(log_path)
+        if records and before is not None and before != identity and \
+                "CompiledRun of partial" in before:
+            # an older pvgraph's record, whose run identity did not spell a compiled run's
+            # factory: it cannot be compared, as it was not then (told, not refused)
+            from ..errors import PlausibilityWarning
+            _warnings.warn(PlausibilityWarning(
+                f"resume: {log_path} was recorded by an older pvgraph, whose record does not "
+                f"say which circuit and settings made it; its {len(records)} finished "
+                f"case{'s' if len(records) != 1 else ''} are kept as this run's. Give "
+                f"overwrite=True (--overwrite) to run every case again."), stacklevel=2)
+            before = identity
         if records and before is not None and before != identity:
             # the kept cases would be shown as this run's (its t_end, outputs ...): refused
             # like a record of other cases, the record left as it is
@@ -1068,8 +1081,10 @@ def _open_log(path, cases, param_names, units, kept, identity=None):
     return open(path, "a")
 
 
-def _read_log(path, cases) -> dict[int, CaseResult]:
-    """The records of ``cases.jsonl``, checked to belong to the same ``cases``."""
+def _read_log(path, cases, in_si=None) -> dict[int, CaseResult]:
+    """The records of ``cases.jsonl``, checked to belong to the same ``cases`` (``in_si``:
+    how quantities of the cases become SI numbers, for a record written before the records
+    were SI)."""
     with open(path) as f:
         lines = f.read().splitlines()
     try:
@@ -1079,8 +1094,15 @@ def _read_log(path, cases) -> dict[int, CaseResult]:
                          f"another output folder") from None
     same = json.loads(json.dumps([{k: _json_value(v) for k, v in c.items()} for c in cases],
                                  default=str))
-    if head.get("n_cases") != len(cases) or same != head.get("cases"):
-        recorded = head.get("cases") or []
+    recorded = head.get("cases") or []
+    if in_si is not None and head.get("n_cases") == len(cases) and same != recorded:
+        try:
+            recorded = json.loads(json.dumps(
+                [{k: _json_value(v) for k, v in c.items()} for c in in_si(recorded)],
+                default=str))
+        except Exception:       # noqa: BLE001  (a record that is not cases: told below)
+            recorded = head.get("cases") or []
+    if head.get("n_cases") != len(cases) or same != recorded:
         first = next((k for k, (a, b) in enumerate(zip(recorded, same)) if a != b), None)
         detail = (f"; case {first} was {recorded[first]}, now {same[first]}"
                   if first is not None else "")

@@ -268,3 +268,26 @@ def test_quantities_in_the_cases_are_recorded_in_si(tmp_path):
     rows = (tmp_path / "sweep.csv").read_text().splitlines()
     assert [float(line.split(",")[3]) for line in rows[1:]] == [pytest.approx(1e-6), 2e-6]
     assert "mm^2" not in (tmp_path / "cases.jsonl").read_text()
+
+
+def test_a_record_of_quantities_from_an_older_pvgraph_resumes(tmp_path):
+    """A record written before the records were SI (its cases as typed, "1 mm^2") and before
+    the run identity spelled a compiled run's factory: the same sweep resumed it before; it
+    was refused as "another sweep" and "another run". It resumes, telling that the record
+    is an older one."""
+    import json
+    from pvgraph.errors import PlausibilityWarning
+    run = CompiledRun(orifice_bench(), outputs={"p": "node.port.p"}, steady=True, tol=1e-12)
+    cases = [{"orifice.A": "1 mm^2"}, {"orifice.A": "2 mm^2"}]
+    out = tmp_path / "rec"
+    sweep(run, cases, backend="serial", out=out)
+    log = out / "cases.jsonl"
+    lines = log.read_text().splitlines()
+    head = json.loads(lines[0])
+    head["cases"] = cases                                    # as typed, as it was written
+    head["run"] = "pvgraph.cli._noted_case with (CompiledRun of partial, p=node.port.p)"
+    log.write_text("\n".join([json.dumps(head), lines[1]]) + "\n")   # one case finished
+    with pytest.warns(PlausibilityWarning, match="recorded by an older pvgraph"):
+        result = sweep(run, cases, backend="serial", out=out, resume=True)
+    expected = [rebuilt(**{"orifice.A": a})["p"] for a in (1e-6, 2e-6)]
+    assert [r.outputs["p"] for r in result.records] == pytest.approx(expected, rel=1e-9)
