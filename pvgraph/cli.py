@@ -464,7 +464,7 @@ def cmd_graph(args) -> int:
 
 
 def cmd_export(args) -> int:
-    fmu = args.out.endswith(".fmu")
+    fmu = args.out.lower().endswith(".fmu")
     if fmu:
         for names, option in ((args.var, "--var"), (args.input, "--input"),
                               (args.parameter, "--parameter")):
@@ -589,14 +589,28 @@ def _check_units_not_mixed(name: str, values: list[str], spell, declared=None) -
     from .units import _NUMBER
     match = _NUMBER.match(given[0])
     unit = match.group(2) if match and match.group(2) else None
+    if unit and declared:
+        from .units import UnitError, parse_unit
+        try:
+            same = parse_unit(unit) == parse_unit(declared)
+        except UnitError:
+            same = False
+        if same:        # the quantity's unit is the SI one the plain numbers are read in
+            return
     if unit:
         typed = [f"{v.strip()} {unit}" if _is_bare(v) else v.strip() for v in values]
         hint = f"write '{name}={spell(typed)}'"
-        try:
-            si = [f"{_parse_number(v, name, declared):.12g}" for v in typed] if declared else None
+        try:       # both readings in SI: the plain numbers in the unit, or as SI
+            in_unit = [f"{_parse_number(v, name, declared):.12g}" for v in typed]
+            as_si = [v.strip() if _is_bare(v) else f"{_parse_number(v, name, declared):.12g}"
+                     for v in values]
         except PvgraphError:
-            si = None
-        hint += f" or, in SI, '{name}={spell(si)}'" if si else ", or SI numbers for all"
+            in_unit = as_si = None
+        if declared and in_unit:
+            hint += (f" (in SI, '{name}={spell(in_unit)}') if {bare[0]!r} is in {unit}, or "
+                     f"'{name}={spell(as_si)}' if it is SI")
+        else:
+            hint += ", or SI numbers for all"
     else:
         hint = "give every value with its unit, or SI numbers for all"
     raise PvgraphError(f"--param {name}: {bare[0]!r} has no unit but {given[0]!r} has one, "
@@ -693,7 +707,8 @@ def _sweep_cases(args, valid, prefix: dict | None = None) -> list[dict]:
 
 
 #: the sweep's Python arguments in messages, as the command line spells them
-_SWEEP_SPELLING = {"resume=True": "--resume", "overwrite=True": "--overwrite", "out='": "--out '"}
+_SWEEP_SPELLING = {"resume=True": "--resume", "overwrite=True": "--overwrite", "out='": "--out '",
+                   "out=": "--out"}
 
 
 def _in_option_spelling(message: str) -> str:

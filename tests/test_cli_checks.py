@@ -670,3 +670,9 @@ def test_validate_refuses_only_the_files_this_run_writes(tmp_path):
         _check_json_beside_out(args("calibration.json", calibrate=True))
     with pytest.raises(PvgraphError, match="cross_validation.png the command writes"):
         _check_json_beside_out(args("cross_validation.png", cross_validate=True))
+
+
+def test_a_plain_number_beside_the_parameters_own_si_unit_is_not_mixing(rig, tmp_path):
+    # "1e-6:2e-6 m^2:2" reads the same either way; it was refused as mixing units
+    out = tmp_path / "si"
+    assert _sweep(rig, out, "--param", "orifice.A=1e-6:2e-6 m^2:2") == 0
