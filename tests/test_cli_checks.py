@@ -676,3 +676,16 @@ def test_a_plain_number_beside_the_parameters_own_si_unit_is_not_mixing(rig, tmp
     # "1e-6:2e-6 m^2:2" reads the same either way; it was refused as mixing units
     out = tmp_path / "si"
     assert _sweep(rig, out, "--param", "orifice.A=1e-6:2e-6 m^2:2") == 0
+
+
+def test_the_difference_of_two_runs_is_told_by_whole_items():
+    # a changed output inside a list was cut mid-list: "(recorded: 'orifice.q']; ..."
+    from pvgraph.analysis.sweep import _identity_difference
+    run = ("pvgraph.cli._noted_case with (CompiledRun of pvgraph.cli._target_circuit with "
+           "('/x/my_rig.py:build', {}, ()), outputs ['node.port.p', 'orifice.q'], t_end 1.0, "
+           "rtol 1e-06)")
+    assert _identity_difference(run, run.replace("'orifice.q'", "'orifice.a.q'")) == (
+        "recorded: outputs ['node.port.p', 'orifice.q']; "
+        "now: outputs ['node.port.p', 'orifice.a.q']")
+    assert _identity_difference(run, run.replace("t_end 1.0", "t_end 0.1").replace(
+        "1e-06", "1e-08")) == "recorded: t_end 1.0, rtol 1e-06; now: t_end 0.1, rtol 1e-08"

@@ -1040,19 +1040,30 @@ def _identity_of(value) -> str:
 
 
 def _identity_difference(before: str, now: str) -> str:
-    """``"recorded t_end 10.0, now t_end 0.1"``: the part of two run identities that
-    differs, widened to whole ", "-separated items."""
-    start = len(os.path.commonprefix([before, now]))
-    end = len(os.path.commonprefix([before[::-1], now[::-1]]))
-    end = min(end, len(before) - start, len(now) - start)
-    cut = max(before.rfind(", ", 0, start), before.rfind("(", 0, start))
-    start = cut + (2 if before.startswith(", ", cut) else 1) if cut >= 0 else 0
-
-    def stop(text):
-        k = len(text) - end
-        found = [i for i in (text.find(", ", k), text.find(")", k)) if i >= 0]
-        return min(found) if found else len(text)
-    return f"recorded: {before[start:stop(before)]}; now: {now[start:stop(now)]}"
+    """``"recorded: t_end 10.0; now: t_end 0.1"``: the items of two run identities that
+    differ (items: the parts between ", " outside brackets, so that a list of outputs is one
+    item)."""
+    def items(text):
+        out, depth, start = [], 0, 0
+        for k, ch in enumerate(text):
+            depth += ch in "([{"
+            depth -= ch in ")]}"
+            if depth == 0 and text.startswith(", ", k):
+                out.append(text[start:k])
+                start = k + 2
+        return out + [text[start:]]
+    a, b = items(before), items(now)
+    if len(a) != len(b):
+        return f"recorded: {before}; now: {now}"
+    differ = [k for k, (x, y) in enumerate(zip(a, b)) if x != y]
+    if len(differ) == 1:    # one item: inside its brackets where both open them alike
+        x, y = a[differ[0]], b[differ[0]]
+        head = x.find("(")
+        if head >= 0 and x[:head + 1] == y[:head + 1] and x.endswith(")") and \
+                y.endswith(")"):
+            return _identity_difference(x[head + 1:-1], y[head + 1:-1])
+    return (f"recorded: {', '.join(a[k] for k in differ)}; "
+            f"now: {', '.join(b[k] for k in differ)}")
 
 
 def _recorded_identity(path):
