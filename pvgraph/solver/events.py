@@ -22,7 +22,7 @@ import numpy as np
 from scipy.optimize import brentq
 from pvgraph.errors import SolverError
 
-__all__ = ["Event", "normalize_events", "EventTracker", "turned_back", "zeno_error"]
+__all__ = ["Event", "normalize_events", "EventTracker", "turned_back", "zeno_error", "probe"]
 
 UROUND = np.finfo(float).eps
 SIGN_PROBE = 1e-6           # fraction of the step at which an initially-zero g is probed
@@ -214,9 +214,6 @@ class EventTracker:
             else:
                 self.g[i] = 0.0
 
-    def _zeno(self, i, t_old, t_new):
-        raise zeno_error(self.events[i], t_old, t_new)
-
     def _reversed(self, i, direction, t, y, yp, last) -> bool:
         """:func:`turned_back` for event ``i`` after the step ``last`` it crossed in."""
         return turned_back(lambda *p: self._value_at(i, p), direction, t, y, yp, last[3],
@@ -275,7 +272,7 @@ class EventTracker:
             if (ev.direction > 0 and not rising) or (ev.direction < 0 and not falling):
                 continue
             if i in self._turned and self._turned[i] == t_old:
-                self._zeno(i, t_old, t_new)
+                raise zeno_error(ev, t_old, t_new)
             found.append((self._locate(ev, t_old, t_new, a, b, interp),
                           i, 1 if rising else -1))
         self._turned = {}
@@ -312,8 +309,14 @@ def turned_back(g, direction, t, y, yp, dt, change=0.0) -> bool:
     if not dt > 0.0:
         return False
     delta = SIGN_PROBE * dt
-    rise = float(g(t + delta, y + delta * yp, yp)) - float(g(t, y, yp))
+    _, rise = probe(g, t, y, yp, delta)
     return rise * direction < 0.0 and abs(rise) / delta > 1e-6 * change / dt
+
+
+def probe(g, t, y, yp, delta) -> tuple[float, float]:
+    """``(g at (t, y, y'), its change a first-order step delta along y' later)``."""
+    g0 = float(g(t, y, yp))
+    return g0, float(g(t + delta, y + delta * yp, yp)) - g0
 
 
 def zeno_error(ev, t_old, t_new) -> SolverError:

@@ -8,6 +8,7 @@ consistent initialisation and a restart at order 1), dense output and statistics
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 
@@ -726,12 +727,7 @@ def _integrate(residual, t0, t_end, y0, yp0, rtol, atol, alg_mask, alg_given, su
     if alg_given and alg_mask.any() and not _of_a_system(residual):
         _check_declared_algebraic(jacobian, t0, y0, yp0, r0, alg_mask, var_names)
         start = (t0, y0.copy(), yp0.copy(), r0.copy())
-
-        def found_rows(kept=[]):     # noqa: B006  (computed once, kept for the run)
-            if not kept:
-                kept.append(_constraint_rows(jacobian, *start, alg_mask))
-            return kept[0]
-        constraint_rows = found_rows
+        constraint_rows = functools.cache(lambda: _constraint_rows(jacobian, *start, alg_mask))
     lu_kind = _lu_kind(linear_solver, residual, n)
     if lu_kind == "c":
         jacobian.dense_only = True      # the C LU takes dense matrices (n <= CLU_MAX_N)

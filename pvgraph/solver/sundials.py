@@ -54,7 +54,8 @@ import scipy.sparse as sp
 
 from pvgraph.errors import InitializationError, SolverError
 from pvgraph.solver.events import (SIGN_PROBE, UROUND, EventTracker, check_times,
-                                   normalize_events, stopping_event, turned_back, zeno_error)
+                                   normalize_events, probe, stopping_event, turned_back,
+                                   zeno_error)
 from pvgraph.solver.ida import dominant_names, initial_step
 from pvgraph.solver.initial import start_values
 from pvgraph.solver.linalg import SPARSE_MIN_N, JacobianEvaluator
@@ -129,12 +130,9 @@ def _at_zero(g, t, y, yp, dt) -> bool:
     """True if the event function ``g`` is at its zero at ``(t, y, y')`` within what IDA's
     location of a root leaves (its time tolerance, 100 ulps of t and the step, times the
     function's rate, from a first-order probe along y')."""
-    g0 = float(g(t, y, yp))
-    if g0 == 0.0:
-        return True
     delta = SIGN_PROBE * dt if dt > 0.0 else 1e-9 * max(abs(t), 1.0)
-    rate = abs(float(g(t + delta, y + delta * yp, yp)) - g0) / delta
-    return abs(g0) <= 200.0 * UROUND * (abs(t) + abs(dt)) * rate
+    g0, rise = probe(g, t, y, yp, delta)
+    return g0 == 0.0 or abs(g0) <= 200.0 * UROUND * (abs(t) + abs(dt)) * abs(rise) / delta
 
 
 def _stall(stalled, tn, t_end):
